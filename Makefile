@@ -1,0 +1,50 @@
+# sela_ros: `make demo` runs the mission, `make test` runs the tests. Both create .venv first.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+PKG_SOURCES := $(shell find sela_ros sim_bridge -name '*.py' -o -name '*.urdf' -o -name '*.npz' 2>/dev/null) \
+	setup.py setup.cfg package.xml resource/sela_ros $(wildcard config/*.yaml launch/*.py)
+
+# DDS stays on loopback; the venv is the ament prefix that `ros2 run`-style lookups use.
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
+export AMENT_PREFIX_PATH := $(abspath $(VENV))
+export PYTHONDONTWRITEBYTECODE := 1
+
+DEMO_ARGS ?=
+TEST_ARGS ?=
+
+.PHONY: venv demo test bench lint clean
+
+venv: $(VENV)/.installed
+
+# Third-party dependencies: only when requirements.txt changes.
+$(VENV)/.deps: requirements.txt
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip setuptools wheel
+	$(PY) -m pip install --quiet -r requirements.txt
+	@touch $@
+
+# The package itself: a real (non-editable) install, so that setup.py's data_files land in
+# $(VENV)/share exactly as colcon puts them in install/, then the executables are mirrored
+# into $(VENV)/lib/sela_ros where `ros2 run` looks.
+$(VENV)/.installed: $(VENV)/.deps $(PKG_SOURCES)
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation --force-reinstall .
+	$(PY) scripts/link_executables.py --prefix $(VENV)
+	@rm -rf build *.egg-info
+	@touch $@
+
+demo: venv
+	$(VENV)/bin/sela-demo $(DEMO_ARGS)
+
+test: venv
+	$(PY) -m pytest test $(TEST_ARGS)
+
+bench: venv
+	$(PY) benchmarks/run_all.py
+
+lint: venv
+	$(VENV)/bin/ruff check .
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache

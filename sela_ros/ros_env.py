@@ -1,0 +1,61 @@
+"""Environment for processes that touch DDS, and lookup of the package's executables.
+
+ROS-free: used by the demo launcher, the experiments and the tests to start node processes
+the way `ros2 run sela_ros <node>` would, with DDS kept on loopback.
+"""
+import os
+import sys
+from pathlib import Path
+
+PACKAGE = 'sela_ros'
+
+
+def ros_environment(domain_id=None, base=None):
+    """Return a copy of ``base`` (default ``os.environ``) fit for a DDS process here.
+
+    Discovery stays on loopback (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``), the RMW is
+    Fast DDS, and when no ament prefix is set the running interpreter's prefix is used (the
+    project's .venv, where the package is installed with its ament index entry).
+
+    Args:
+        domain_id: ``ROS_DOMAIN_ID`` to use; ``None`` keeps the inherited one.
+        base: mapping to start from.
+    """
+    env = dict(os.environ if base is None else base)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    if not env.get('AMENT_PREFIX_PATH'):
+        env['AMENT_PREFIX_PATH'] = sys.prefix
+    if domain_id is not None:
+        domain_id = int(domain_id)
+        if not 0 <= domain_id <= 101:
+            raise ValueError(f'ROS_DOMAIN_ID must be in [0, 101], got {domain_id}')
+        env['ROS_DOMAIN_ID'] = str(domain_id)
+    env.setdefault('PYTHONUNBUFFERED', '1')
+    return env
+
+
+def ensure_ros_environment():
+    """Apply :func:`ros_environment` to this process (before ``rclpy.init``)."""
+    os.environ.update(ros_environment())
+
+
+def package_prefix():
+    """The install prefix of sela_ros according to the ament index."""
+    ensure_ros_environment()
+    from ament_index_python.packages import get_package_prefix
+
+    return Path(get_package_prefix(PACKAGE))
+
+
+def executable(name):
+    """Path of ``name`` under ``<prefix>/lib/sela_ros/``, as ``ros2 run sela_ros name`` finds it.
+
+    Raises:
+        FileNotFoundError: when the package is installed without that executable.
+    """
+    path = package_prefix() / 'lib' / PACKAGE / name
+    if not (path.exists() and os.access(path, os.X_OK)):
+        raise FileNotFoundError(
+            f'no executable {name!r} in {path.parent}: run `make venv` (or colcon build) first')
+    return path

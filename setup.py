@@ -1,0 +1,40 @@
+"""ament_python build script for sela_ros (colcon build, or pip install into .venv)."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'sela_ros'
+
+# Every executable of the package. Nodes are reached with `ros2 run sela_ros <name>`; the
+# command-line tools keep their dashed names. scripts/link_executables.py mirrors these into
+# <prefix>/lib/sela_ros/ when the package is pip-installed into the project's .venv.
+CONSOLE_SCRIPTS = [
+    'sim_bridge = sim_bridge.node:main',
+    'damage_detector = sela_ros.damage_detector_node:main',
+    'planner = sela_ros.planner_node:main',
+    'sela_adapter = sela_ros.adapter_node:main',
+    'sela-demo = sela_ros.demo:main',
+    'sela-experiment = sela_ros.experiments.cli:main',
+    'sela-build-archive = sela_ros.build_archive:main',
+]
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    package_data={'sim_bridge': ['urdf/*.urdf'], 'sela_ros': ['data/*']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + package_name + '/launch', sorted(glob('launch/*.py'))),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='sela_ros developers',
+    maintainer_email='sela_ros@example.org',
+    description='Semi-Episodic Learning Algorithm (SELA) for hexapod damage recovery, on ROS 2',
+    license='BSD-3-Clause',
+    extras_require={'test': ['pytest']},
+    entry_points={'console_scripts': CONSOLE_SCRIPTS},
+)

@@ -1,0 +1,53 @@
+"""Shared fixtures: every test run gets its own ROS_DOMAIN_ID and stays on loopback."""
+import fcntl
+import os
+import random
+import tempfile
+
+import pytest
+
+_DOMAIN_LOCK = None
+
+
+def _claim_domain_id():
+    """Claim a ROS_DOMAIN_ID that no other test run on this machine holds.
+
+    An exclusive flock on one file per id, held for the whole session, makes concurrent
+    runs pick different ids; the lock dies with the process, so a killed run frees its id.
+    """
+    global _DOMAIN_LOCK
+    ids = list(range(10, 100))
+    random.Random(os.getpid()).shuffle(ids)
+    lock_dir = os.path.join(tempfile.gettempdir(), 'sela_ros_domain_ids')
+    os.makedirs(lock_dir, exist_ok=True)
+    for domain_id in ids:
+        handle = open(os.path.join(lock_dir, f'{domain_id}.lock'), 'w')  # noqa: SIM115
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        _DOMAIN_LOCK = handle
+        return domain_id
+    raise RuntimeError('no free ROS_DOMAIN_ID in 10..99: too many concurrent test runs')
+
+
+def pytest_configure(config):
+    if 'SELA_TEST_DOMAIN_ID' not in os.environ:
+        os.environ['SELA_TEST_DOMAIN_ID'] = str(_claim_domain_id())
+    os.environ['ROS_DOMAIN_ID'] = os.environ['SELA_TEST_DOMAIN_ID']
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    os.environ.setdefault('ROS_LOG_DIR', os.path.join(tempfile.gettempdir(), 'sela_ros_test_logs'))
+
+
+def pytest_report_header(config):
+    return f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')} (loopback only)"
+
+
+@pytest.fixture
+def ros_env():
+    """Environment for a child process that talks DDS in this test run's domain."""
+    from sela_ros.ros_env import ros_environment
+
+    return ros_environment(domain_id=int(os.environ['ROS_DOMAIN_ID']))
