@@ -1,0 +1,291 @@
+"""Gaussian processes for SELA: exponential kernel, multi-output GP, candidate-set cache.
+
+The kernel follows limbo's ``Exp`` kernel, ``k(x, y) = variance * exp(-0.5 ||x - y||^2 /
+sigma^2)``, over inputs normalised to ``[0, 1]^d``. Means follow M-BOA: the GP models the
+difference between the observations and a prior mean (the archive's prediction).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.linalg import solve_triangular
+
+DEFAULT_SIGMA = 0.1
+DEFAULT_VARIANCE = 1.0
+DEFAULT_NOISE = 0.001
+
+
+def exponential_kernel(a, b, sigma=DEFAULT_SIGMA, variance=DEFAULT_VARIANCE):
+    """Exponential kernel matrix between the rows of ``a`` (n, d) and ``b`` (m, d).
+
+    Returns:
+        ``(n, m)`` array of ``variance * exp(-0.5 * ||a_i - b_j||^2 / sigma^2)``.
+    """
+    a = np.atleast_2d(np.asarray(a, dtype=float))
+    b = np.atleast_2d(np.asarray(b, dtype=float))
+    sq = (np.sum(a * a, axis=1)[:, None] + np.sum(b * b, axis=1)[None, :] - 2.0 * a @ b.T)
+    np.maximum(sq, 0.0, out=sq)
+    return variance * np.exp(-0.5 * sq / (sigma * sigma))
+
+
+def _check_hyper(sigma, variance, noise):
+    for name, value in (('sigma', sigma), ('variance', variance)):
+        if not np.isfinite(value) or value <= 0:
+            raise ValueError(f'kernel {name} must be a finite number > 0, got {value!r}')
+    if not np.isfinite(noise) or noise < 0:
+        raise ValueError(f'GP noise must be a finite number >= 0, got {noise!r}')
+
+
+def _check_finite(name, array):
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f'{name} contains NaN or inf; expected finite numbers')
+
+
+class _GrowingCholesky:
+    """Lower Cholesky factor L of K + noise I, grown one row at a time (rank-one extension).
+
+    Also keeps ``beta = L^{-1} (Y - prior(X))``: appending a row to L appends one row to
+    beta (forward substitution) and leaves the earlier rows unchanged.
+    """
+
+    def __init__(self, output_dim, capacity=32):
+        self.n = 0
+        self._L = np.zeros((capacity, capacity))
+        self._beta = np.zeros((capacity, output_dim))
+
+    @property
+    def L(self):
+        return self._L[:self.n, :self.n]
+
+    @property
+    def beta(self):
+        return self._beta[:self.n]
+
+    def _grow(self):
+        cap = 2 * self._L.shape[0]
+        L = np.zeros((cap, cap))
+        L[:self.n, :self.n] = self.L
+        beta = np.zeros((cap, self._beta.shape[1]))
+        beta[:self.n] = self.beta
+        self._L, self._beta = L, beta
+
+    def append(self, k_vec, k_self, residual):
+        """Append one observation; returns the new row ``(l, d)`` of L (l: (n,), d scalar)."""
+        if self.n == self._L.shape[0]:
+            self._grow()
+        n = self.n
+        if n:
+            row = solve_triangular(self.L, k_vec, lower=True, check_finite=False)
+        else:
+            row = np.zeros(0)
+        d2 = k_self - float(row @ row)
+        if d2 <= 1e-12:
+            raise ValueError(
+                'GP covariance is no longer positive definite (duplicate input with zero '
+                'noise?); use a noise > 0')
+        d = np.sqrt(d2)
+        self._L[n, :n] = row
+        self._L[n, n] = d
+        self._beta[n] = (residual - row @ self.beta) / d
+        self.n = n + 1
+        return row, d
+
+
+class MultiOutputGP:
+    """Gaussian processes, one per output (generic-reward) dimension, over shared inputs.
+
+    All outputs are observed at the same inputs and use the same kernel and noise, so their
+    covariance matrices are identical: they share ONE Cholesky factor and differ only in
+    their targets. Adding a sample extends that factor by one row (O(N^2)), never
+    refactorises it.
+
+    Args:
+        input_dim: dimension d of the (normalised) inputs.
+        output_dim: number D of outputs (GR dimensions).
+        mean: prior mean, a callable mapping an ``(n, d)`` array to an ``(n, D)`` array
+            (M-BOA: the archive's / intact model's prediction); None for a zero mean.
+        sigma: kernel length scale (``gp.kernel.sigma``).
+        variance: kernel signal variance.
+        noise: observation noise variance added to the diagonal (``gp.noise``).
+    """
+
+    def __init__(self, input_dim: int, output_dim: int,
+                 mean: Callable[[np.ndarray], np.ndarray] | None = None,
+                 sigma: float = DEFAULT_SIGMA, variance: float = DEFAULT_VARIANCE,
+                 noise: float = DEFAULT_NOISE):
+        if int(input_dim) < 1 or int(output_dim) < 1:
+            raise ValueError(
+                f'input_dim and output_dim must be >= 1, got {input_dim} and {output_dim}')
+        if mean is not None and not callable(mean):
+            raise ValueError('mean must be a callable (n, d) -> (n, D) or None')
+        _check_hyper(sigma, variance, noise)
+        self.input_dim, self.output_dim = int(input_dim), int(output_dim)
+        self.sigma, self.variance, self.noise = float(sigma), float(variance), float(noise)
+        self._mean = mean
+        self._chol = _GrowingCholesky(self.output_dim)
+        self._X = np.zeros((0, self.input_dim))
+        self._Y = np.zeros((0, self.output_dim))
+
+    @property
+    def num_samples(self) -> int:
+        return self._chol.n
+
+    @property
+    def samples(self):
+        """The observations as ``(X (N, d), Y (N, D))`` copies."""
+        return self._X.copy(), self._Y.copy()
+
+    def prior_mean(self, X) -> np.ndarray:
+        X = self._check_inputs(X)
+        if self._mean is None:
+            return np.zeros((X.shape[0], self.output_dim))
+        m = np.asarray(self._mean(X), dtype=float).reshape(X.shape[0], self.output_dim)
+        return m
+
+    def _check_inputs(self, X):
+        X = np.asarray(X, dtype=float)
+        if X.ndim == 1 and self.input_dim == 1 and X.size != 1:
+            X = X[:, None]
+        X = np.atleast_2d(X)
+        if X.ndim != 2 or X.shape[1] != self.input_dim:
+            raise ValueError(f'inputs must have shape (n, {self.input_dim}), got {X.shape}')
+        _check_finite('inputs', X)
+        return X
+
+    def add_sample(self, x, y) -> None:
+        """Add one observation ``y`` (D,) at input ``x`` (d,)."""
+        x = np.asarray(x, dtype=float).reshape(-1)
+        y = np.asarray(y, dtype=float).reshape(-1)
+        if x.shape != (self.input_dim,):
+            raise ValueError(f'x must have shape ({self.input_dim},), got {x.shape}')
+        if y.shape != (self.output_dim,):
+            raise ValueError(f'y must have shape ({self.output_dim},), got {y.shape}')
+        _check_finite('x', x)
+        _check_finite('y', y)
+        k_vec = exponential_kernel(self._X, x[None], self.sigma, self.variance)[:, 0]
+        residual = y - self.prior_mean(x[None])[0]
+        self._chol.append(k_vec, self.variance + self.noise, residual)
+        self._X = np.vstack([self._X, x])
+        self._Y = np.vstack([self._Y, y])
+
+    def query(self, X):
+        """Posterior at inputs ``X`` (n, d).
+
+        Returns:
+            ``(mu, var)``: ``mu`` (n, D) the posterior means, ``var`` (n,) the posterior
+            variance of the latent function (shared by all outputs; without the noise).
+        """
+        X = self._check_inputs(X)
+        mu = self.prior_mean(X)
+        var = np.full(X.shape[0], self.variance)
+        if self.num_samples:
+            Ks = exponential_kernel(self._X, X, self.sigma, self.variance)
+            V = solve_triangular(self._chol.L, Ks, lower=True, check_finite=False)
+            mu = mu + V.T @ self._chol.beta
+            var = var - np.sum(V * V, axis=0)
+        return mu, np.maximum(var, 0.0)
+
+
+class CandidateSetGP:
+    """A multi-output GP restricted to a FIXED set of M candidate inputs (the archive).
+
+    Keeps, for every candidate, the rows ``V = L^{-1} k(X_obs, X*)`` (N, M) plus the
+    posterior mean (M, D) and variance (M,) up to date. A new observation appends one
+    row of V: O(M N) work and memory per observation; reading the posterior of all M
+    candidates is then O(M D) (no triangular solve at query time). As in
+    :class:`MultiOutputGP`, all outputs share one Cholesky factor.
+
+    Args:
+        candidates: ``(M, d)`` inputs, normalised to ``[0, 1]^d``.
+        prior_mean: ``(M, D)`` prior mean value per candidate (the archive's GR).
+        sigma, variance, noise: kernel and noise parameters.
+    """
+
+    def __init__(self, candidates, prior_mean, sigma: float = DEFAULT_SIGMA,
+                 variance: float = DEFAULT_VARIANCE, noise: float = DEFAULT_NOISE):
+        candidates = np.asarray(candidates, dtype=float)
+        prior_mean = np.asarray(prior_mean, dtype=float)
+        if candidates.ndim != 2 or candidates.shape[0] < 1:
+            raise ValueError(f'candidates must have shape (M, d), got {candidates.shape}')
+        if prior_mean.ndim == 1:
+            prior_mean = prior_mean[:, None]
+        if prior_mean.ndim != 2 or prior_mean.shape[0] != candidates.shape[0]:
+            raise ValueError(
+                f'prior_mean must have shape ({candidates.shape[0]}, D) to match the '
+                f'candidates, got {prior_mean.shape}')
+        _check_finite('candidates', candidates)
+        _check_finite('prior_mean', prior_mean)
+        _check_hyper(sigma, variance, noise)
+        self.sigma, self.variance, self.noise = float(sigma), float(variance), float(noise)
+        self.candidates = candidates
+        self.prior = prior_mean
+        self._sq_norms = np.sum(candidates * candidates, axis=1)
+        self._chol = _GrowingCholesky(prior_mean.shape[1])
+        self._V = np.zeros((8, candidates.shape[0]))
+        self._mu = prior_mean.copy()
+        self._var = np.full(candidates.shape[0], self.variance)
+        self._indices: list[int] = []
+        self._Y: list[np.ndarray] = []
+
+    @property
+    def num_candidates(self) -> int:
+        return self.candidates.shape[0]
+
+    @property
+    def input_dim(self) -> int:
+        return self.candidates.shape[1]
+
+    @property
+    def output_dim(self) -> int:
+        return self.prior.shape[1]
+
+    @property
+    def num_samples(self) -> int:
+        return self._chol.n
+
+    @property
+    def indices(self) -> list:
+        return list(self._indices)
+
+    @property
+    def observed(self) -> np.ndarray:
+        return np.array(self._Y).reshape(-1, self.output_dim)
+
+    def _kernel_row(self, index):
+        x = self.candidates[index]
+        sq = self._sq_norms + self._sq_norms[index] - 2.0 * (self.candidates @ x)
+        np.maximum(sq, 0.0, out=sq)
+        return self.variance * np.exp((-0.5 / (self.sigma * self.sigma)) * sq)
+
+    def add_sample(self, index: int, y) -> None:
+        """Add the observation ``y`` (D,) of candidate ``index``; O(M N)."""
+        if isinstance(index, (bool, np.bool_)) or not isinstance(index, (int, np.integer)):
+            raise ValueError(f'index must be an integer, got {index!r}')
+        index = int(index)
+        if not 0 <= index < self.num_candidates:
+            raise ValueError(f'index must be in [0, {self.num_candidates}), got {index}')
+        y = np.asarray(y, dtype=float).reshape(-1)
+        if y.shape != (self.output_dim,):
+            raise ValueError(f'y must have shape ({self.output_dim},), got {y.shape}')
+        _check_finite('y', y)
+        n = self._chol.n
+        krow = self._kernel_row(index)
+        k_vec = krow[self._indices] if n else np.zeros(0)
+        row, d = self._chol.append(k_vec, self.variance + self.noise, y - self.prior[index])
+        if n == self._V.shape[0]:
+            V = np.zeros((2 * n, self.num_candidates))
+            V[:n] = self._V[:n]
+            self._V = V
+        v = krow - row @ self._V[:n] if n else krow
+        v /= d
+        self._V[n] = v
+        self._mu += v[:, None] * self._chol.beta[n][None, :]
+        self._var -= v * v
+        self._indices.append(index)
+        self._Y.append(y)
+
+    def query(self):
+        """Posterior of all candidates: ``(mu (M, D), var (M,))`` (views: do not modify)."""
+        np.maximum(self._var, 0.0, out=self._var)
+        return self._mu, self._var

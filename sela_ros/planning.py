@@ -1,0 +1,277 @@
+"""The reward selection layer: occupancy grid, 8-connected A*, waypoint selection.
+
+At each SELA step the planner gives a path from the robot to the goal and
+:func:`next_waypoint` picks the point ``lookahead`` metres along it; the specialised reward
+of a behaviour is then minus the distance from that waypoint to where it is predicted to
+take the robot.
+"""
+from __future__ import annotations
+
+import heapq
+import math
+
+import numpy as np
+
+SQRT2 = math.sqrt(2.0)
+_MOVES = [(1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0),
+          (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2), (-1, -1, SQRT2)]
+
+
+class PlanningError(ValueError):
+    """No path can be planned."""
+
+
+class OffMapError(PlanningError):
+    """The start or the goal lies outside the map."""
+
+
+class InObstacleError(PlanningError):
+    """The start or the goal lies in an occupied cell."""
+
+
+class UnreachableError(PlanningError):
+    """No obstacle-free path joins the start and the goal."""
+
+
+class OccupancyGrid:
+    """A 2-D occupancy grid in the ``odom`` frame (like nav_msgs/OccupancyGrid).
+
+    Args:
+        occupancy: ``(height, width)`` array, row = y cell, column = x cell; nonzero (or
+            True) means occupied. Integer grids in ROS's convention (-1 unknown, 0..100)
+            count values >= ``occupied_threshold`` and unknown (< 0) as occupied.
+        resolution: cell size in metres.
+        origin: world ``(x, y)`` of the corner of cell (0, 0).
+        occupied_threshold: for integer grids, the value from which a cell is occupied.
+    """
+
+    def __init__(self, occupancy, resolution: float, origin=(0.0, 0.0),
+                 occupied_threshold: int = 50):
+        occ = np.asarray(occupancy)
+        if occ.ndim != 2 or occ.shape[0] < 1 or occ.shape[1] < 1:
+            raise ValueError(f'occupancy must be a non-empty 2-D array, got shape {occ.shape}')
+        if not np.isfinite(resolution) or resolution <= 0:
+            raise ValueError(f'resolution must be a finite number > 0, got {resolution!r}')
+        origin = np.asarray(origin, dtype=float).reshape(-1)
+        if origin.shape != (2,) or not np.all(np.isfinite(origin)):
+            raise ValueError(f'origin must be a finite (x, y), got {origin!r}')
+        if occ.dtype == bool:
+            self.occupied = occ.copy()
+        else:
+            self.occupied = (occ >= occupied_threshold) | (occ < 0)
+        self.resolution = float(resolution)
+        self.origin = origin
+
+    @classmethod
+    def empty(cls, xmin, xmax, ymin, ymax, resolution):
+        """An obstacle-free grid covering ``[xmin, xmax] x [ymin, ymax]``."""
+        width = int(math.ceil((xmax - xmin) / resolution))
+        height = int(math.ceil((ymax - ymin) / resolution))
+        if width < 1 or height < 1:
+            raise ValueError('empty grid needs xmax > xmin and ymax > ymin')
+        return cls(np.zeros((height, width), dtype=bool), resolution, (xmin, ymin))
+
+    @property
+    def width(self) -> int:
+        return self.occupied.shape[1]
+
+    @property
+    def height(self) -> int:
+        return self.occupied.shape[0]
+
+    @property
+    def bounds(self):
+        """``(xmin, xmax, ymin, ymax)`` in metres."""
+        x0, y0 = self.origin
+        return (x0, x0 + self.width * self.resolution, y0, y0 + self.height * self.resolution)
+
+    def bounds_text(self) -> str:
+        xmin, xmax, ymin, ymax = self.bounds
+        return f'x in [{xmin:g}, {xmax:g}), y in [{ymin:g}, {ymax:g})'
+
+    def world_to_cell(self, xy):
+        """Cell ``(ix, iy)`` holding the world point ``xy``; raises OffMapError outside."""
+        xy = np.asarray(xy, dtype=float).reshape(-1)[:2]
+        ix, iy = np.floor((xy - self.origin) / self.resolution).astype(int)
+        if not (0 <= ix < self.width and 0 <= iy < self.height):
+            raise OffMapError(f'point ({xy[0]:g}, {xy[1]:g}) is off the map '
+                              f'({self.bounds_text()})')
+        return int(ix), int(iy)
+
+    def cell_to_world(self, cell):
+        """World ``(x, y)`` of the centre of cell ``(ix, iy)``."""
+        return self.origin + (np.asarray(cell, dtype=float) + 0.5) * self.resolution
+
+    def in_map(self, xy) -> bool:
+        try:
+            self.world_to_cell(xy)
+        except OffMapError:
+            return False
+        return True
+
+    def is_free(self, cell) -> bool:
+        ix, iy = cell
+        return (0 <= ix < self.width and 0 <= iy < self.height
+                and not self.occupied[iy, ix])
+
+
+def _octile(a, b):
+    dx, dy = abs(a[0] - b[0]), abs(a[1] - b[1])
+    return max(dx, dy) + (SQRT2 - 1.0) * min(dx, dy)
+
+
+def _endpoint_cell(grid, xy, which):
+    try:
+        cell = grid.world_to_cell(xy)
+    except OffMapError as err:
+        raise OffMapError(f'{which} {err}') from None
+    if not grid.is_free(cell):
+        raise InObstacleError(f'{which} ({xy[0]:g}, {xy[1]:g}) is in an obstacle '
+                              f'(cell {cell}; map {grid.bounds_text()})')
+    return cell
+
+
+def astar_cells(grid: OccupancyGrid, start_cell, goal_cell):
+    """Shortest 8-connected cell path (straight 1, diagonal sqrt 2, in cells) and its cost.
+
+    Diagonal moves may not cut the corner of an occupied cell. The octile heuristic is
+    admissible and consistent, so the path is optimal.
+
+    Returns:
+        ``(cells, cost)``: list of ``(ix, iy)`` from start to goal, cost in cells.
+    """
+    start, goal = tuple(start_cell), tuple(goal_cell)
+    g = {start: 0.0}
+    parent = {start: None}
+    counter = 0
+    heap = [(_octile(start, goal), 0.0, counter, start)]
+    closed = set()
+    while heap:
+        _, cost, _, cell = heapq.heappop(heap)
+        if cell in closed:
+            continue
+        if cell == goal:
+            path = []
+            while cell is not None:
+                path.append(cell)
+                cell = parent[cell]
+            return path[::-1], cost
+        closed.add(cell)
+        for dx, dy, step in _MOVES:
+            nxt = (cell[0] + dx, cell[1] + dy)
+            if nxt in closed or not grid.is_free(nxt):
+                continue
+            if dx and dy and not (grid.is_free((cell[0] + dx, cell[1]))
+                                  and grid.is_free((cell[0], cell[1] + dy))):
+                continue
+            new_cost = cost + step
+            if new_cost < g.get(nxt, math.inf) - 1e-12:
+                g[nxt] = new_cost
+                parent[nxt] = cell
+                counter += 1
+                # Ties on f go to the larger g (closer to the goal): fewer expansions.
+                heapq.heappush(heap, (new_cost + _octile(nxt, goal), -new_cost, counter, nxt))
+    raise UnreachableError(f'goal cell {goal} is unreachable from start cell {start} '
+                           f'(map {grid.bounds_text()})')
+
+
+def astar(grid: OccupancyGrid, start_xy, goal_xy) -> np.ndarray:
+    """Optimal 8-connected path from ``start_xy`` to ``goal_xy`` in world coordinates.
+
+    Returns:
+        ``(n, 2)`` array: the exact start, the centres of the intermediate cells, the exact
+        goal.
+
+    Raises:
+        OffMapError, InObstacleError, UnreachableError (all PlanningError/ValueError).
+    """
+    start_xy = np.asarray(start_xy, dtype=float).reshape(-1)[:2]
+    goal_xy = np.asarray(goal_xy, dtype=float).reshape(-1)[:2]
+    start = _endpoint_cell(grid, start_xy, 'start')
+    goal = _endpoint_cell(grid, goal_xy, 'goal')
+    cells, _ = astar_cells(grid, start, goal)
+    points = [start_xy] + [grid.cell_to_world(c) for c in cells[1:-1]] + [goal_xy]
+    if len(cells) == 1:
+        points = [start_xy, goal_xy]
+    return np.array(points)
+
+
+def line_is_free(grid: OccupancyGrid, a, b) -> bool:
+    """Whether the segment a-b crosses only free cells (sampled at resolution / 4)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    n = max(2, int(math.ceil(np.linalg.norm(b - a) / (grid.resolution / 4.0))) + 1)
+    pts = a[None] + np.linspace(0.0, 1.0, n)[:, None] * (b - a)[None]
+    cells = np.floor((pts - grid.origin) / grid.resolution).astype(int)
+    return all(grid.is_free(tuple(c)) for c in cells)
+
+
+def smooth_path(grid: OccupancyGrid, path) -> np.ndarray:
+    """Shortcut a grid path by line of sight (string pulling): drops the 45-degree zigzags
+    of 8-connected paths, so that the waypoint points where the robot should really go."""
+    path = np.asarray(path, dtype=float)
+    if len(path) <= 2:
+        return path
+    out = [path[0]]
+    i = 0
+    while i < len(path) - 1:
+        j = len(path) - 1
+        while j > i + 1 and not line_is_free(grid, path[i], path[j]):
+            j -= 1
+        out.append(path[j])
+        i = j
+    return np.array(out)
+
+
+def next_waypoint(path, pose_xy, lookahead: float) -> np.ndarray:
+    """The point ``lookahead`` metres along ``path`` from the robot (the goal if closer).
+
+    The robot is projected onto the closest point of the path; the waypoint is measured
+    along the path from there.
+    """
+    path = np.asarray(path, dtype=float)
+    if path.ndim != 2 or path.shape[1] != 2 or len(path) < 1:
+        raise ValueError(f'path must have shape (n, 2) with n >= 1, got {path.shape}')
+    if not np.isfinite(lookahead) or lookahead <= 0:
+        raise ValueError(f'lookahead must be a finite number > 0, got {lookahead!r}')
+    p = np.asarray(pose_xy, dtype=float).reshape(-1)[:2]
+    if len(path) == 1:
+        return path[0].copy()
+    a, b = path[:-1], path[1:]
+    seg = b - a
+    seg_len2 = np.maximum(np.sum(seg * seg, axis=1), 1e-18)
+    t = np.clip(np.sum((p - a) * seg, axis=1) / seg_len2, 0.0, 1.0)
+    proj = a + t[:, None] * seg
+    k = int(np.argmin(np.sum((proj - p) ** 2, axis=1)))
+    remaining = lookahead
+    point = proj[k]
+    for i in range(k, len(path) - 1):
+        end = path[i + 1]
+        d = float(np.linalg.norm(end - point))
+        if d >= remaining:
+            return point + (end - point) * (remaining / d)
+        remaining -= d
+        point = end
+    return path[-1].copy()
+
+
+class GridPlanner:
+    """Planner callable ``(start_xy, goal_xy) -> path (n, 2)``: A* on a grid, then smoothed.
+
+    Args:
+        grid: the occupancy grid.
+        smooth: shortcut the A* path by line of sight (default True).
+    """
+
+    def __init__(self, grid: OccupancyGrid, smooth: bool = True):
+        self.grid = grid
+        self.smooth = smooth
+
+    def __call__(self, start_xy, goal_xy) -> np.ndarray:
+        path = astar(self.grid, start_xy, goal_xy)
+        return smooth_path(self.grid, path) if self.smooth else path
+
+
+def straight_line_planner(start_xy, goal_xy) -> np.ndarray:
+    """Planner for an empty world with no map: the straight segment to the goal."""
+    return np.array([np.asarray(start_xy, dtype=float).reshape(-1)[:2],
+                     np.asarray(goal_xy, dtype=float).reshape(-1)[:2]])

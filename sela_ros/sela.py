@@ -1,0 +1,253 @@
+"""SELA-ADAPT (Semi-Episodic Learning Algorithm) as an ask/tell object.
+
+One object serves the ROS ``sela_adapter`` node, the in-process experiments and the tests:
+``ask(pose)`` runs the reward selection layer (plan, pick a waypoint) and UCB over the whole
+archive; ``tell(index, observed_gr)`` adds the observed generic reward to the GPs. Learning
+and acting are the same steps: no reset, no separate training phase.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sela_ros import acquisition, gp
+from sela_ros.planning import next_waypoint, straight_line_planner
+
+
+def wrap_angle(angle):
+    """Wrap angles to ``[-pi, pi)``."""
+    return (np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class PointMotion:
+    """Point robot: pose ``(x, y)``, generic reward ``(dx, dy)`` in the world frame."""
+
+    pose_dim = 2
+    gr_dim = 2
+
+    def predict(self, pose, gr):
+        """Poses after behaviours with generic rewards ``gr`` ((k,) or (M, k))."""
+        return np.asarray(pose, dtype=float)[:2] + np.asarray(gr, dtype=float)
+
+    def generic_reward(self, pose_before, pose_after):
+        """``afun``: the displacement between two poses."""
+        return np.asarray(pose_after, dtype=float)[:2] - np.asarray(pose_before, dtype=float)[:2]
+
+
+class SE2Motion:
+    """Planar robot: pose ``(x, y, yaw)``; GR ``(dx, dy, dyaw)`` in the robot's frame at
+    the start of the behaviour. The predicted pose is the pose composed with the GR."""
+
+    pose_dim = 3
+    gr_dim = 3
+
+    def predict(self, pose, gr):
+        x, y, yaw = np.asarray(pose, dtype=float)[:3]
+        gr = np.asarray(gr, dtype=float)
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy, dyaw = gr[..., 0], gr[..., 1], gr[..., 2]
+        return np.stack([x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(yaw + dyaw)],
+                        axis=-1)
+
+    def generic_reward(self, pose_before, pose_after):
+        """``afun``: world displacement rotated into the start frame, yaw change wrapped."""
+        b = np.asarray(pose_before, dtype=float)[:3]
+        a = np.asarray(pose_after, dtype=float)[:3]
+        c, s = math.cos(b[2]), math.sin(b[2])
+        dx, dy = a[0] - b[0], a[1] - b[1]
+        return np.array([c * dx + s * dy, -s * dx + c * dy, float(wrap_angle(a[2] - b[2]))])
+
+
+def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
+    """``afun`` of the paper: the generic reward observed between two poses."""
+    return motion.generic_reward(pose_before, pose_after)
+
+
+@dataclass(frozen=True)
+class SELAConfig:
+    """SELA parameters, with the paper's (Appendix) defaults, in one place.
+
+    Dotted names (``gp.kernel.sigma``) are the field names with ``_`` read as ``.``;
+    the same names are used in ``config/*.yaml``.
+    """
+
+    gp_kernel_sigma: float = gp.DEFAULT_SIGMA
+    gp_kernel_variance: float = gp.DEFAULT_VARIANCE
+    gp_noise: float = gp.DEFAULT_NOISE
+    acquisition_ucb_alpha: float = acquisition.DEFAULT_ALPHA
+    planner_lookahead: float = 0.1
+    goal_eps: float = 0.1
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value):
+                raise ValueError(f'{_dotted(f.name)} must be a finite number, got {value!r}')
+            if value < 0 or (value == 0 and f.name != 'acquisition_ucb_alpha'
+                             and f.name != 'gp_noise'):
+                raise ValueError(f'{_dotted(f.name)} must be > 0, got {value!r}')
+
+    @classmethod
+    def keys(cls):
+        return [_dotted(f.name) for f in dataclasses.fields(cls)]
+
+    @classmethod
+    def from_dict(cls, values: dict) -> SELAConfig:
+        """Build from ``{'gp.kernel.sigma': 0.1, ...}``; unknown keys raise ValueError."""
+        known = {_dotted(f.name): f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - set(known))
+        if unknown:
+            raise ValueError(f'unknown SELA parameter(s) {unknown}; expected some of '
+                             f'{sorted(known)}')
+        return cls(**{known[k]: float(v) for k, v in values.items()})
+
+    def to_dict(self) -> dict:
+        return {_dotted(k): v for k, v in dataclasses.asdict(self).items()}
+
+
+def _dotted(name):
+    return name.replace('_', '.')
+
+
+@dataclass
+class Decision:
+    """What :meth:`SELA.ask` chose, and why."""
+
+    index: int
+    waypoint: np.ndarray
+    predicted_gr: np.ndarray
+    predicted_pose: np.ndarray
+    reward: float  # specialised reward: -||waypoint - predicted xy||
+    sigma: float   # posterior standard deviation of the chosen behaviour
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+
+class SELA:
+    """SELA-ADAPT over a fixed archive of behaviours.
+
+    Args:
+        candidates_normalised: ``(M, d)`` behaviour descriptors in ``[0, 1]^d``.
+        prior_gr: ``(M, k)`` generic reward of each behaviour on the intact robot (the
+            prior mean of the GPs), ``k == motion.gr_dim``.
+        motion: :class:`PointMotion` or :class:`SE2Motion`.
+        planner: callable ``(start_xy, goal_xy) -> path (n, 2)`` (e.g. a
+            :class:`~sela_ros.planning.GridPlanner`); None: the straight line.
+        goal: goal ``(x, y)``; may be set later with :meth:`set_goal`.
+        config: :class:`SELAConfig` or a dict of dotted names.
+    """
+
+    def __init__(self, candidates_normalised, prior_gr, motion, planner: Callable | None
+                 = None, goal=None, config=None):
+        candidates = np.asarray(candidates_normalised, dtype=float)
+        prior_gr = np.asarray(prior_gr, dtype=float)
+        if candidates.ndim != 2:
+            raise ValueError(f'candidates must have shape (M, d), got {candidates.shape}')
+        if prior_gr.shape != (candidates.shape[0], motion.gr_dim):
+            raise ValueError(f'prior_gr must have shape ({candidates.shape[0]}, '
+                             f'{motion.gr_dim}) for {type(motion).__name__}, got '
+                             f'{prior_gr.shape}')
+        if candidates.size and (candidates.min() < -1e-9 or candidates.max() > 1 + 1e-9):
+            raise ValueError('candidates must be normalised to [0, 1]^d')
+        if isinstance(config, dict):
+            config = SELAConfig.from_dict(config)
+        self.config = config or SELAConfig()
+        self.motion = motion
+        self.planner = planner or straight_line_planner
+        self._candidates = candidates
+        self._prior = prior_gr
+        self.goal = None
+        if goal is not None:
+            self.set_goal(goal)
+        self.reset_learning()
+
+    @property
+    def num_candidates(self) -> int:
+        return self._candidates.shape[0]
+
+    @property
+    def gp(self) -> gp.CandidateSetGP:
+        return self._gp
+
+    def reset_learning(self) -> None:
+        """Forget every observation: back to the prior (the intact robot's archive)."""
+        c = self.config
+        self._gp = gp.CandidateSetGP(self._candidates, self._prior, sigma=c.gp_kernel_sigma,
+                                     variance=c.gp_kernel_variance, noise=c.gp_noise)
+
+    def set_goal(self, goal) -> None:
+        goal = np.asarray(goal, dtype=float).reshape(-1)
+        if goal.shape[0] < 2 or not np.all(np.isfinite(goal[:2])):
+            raise ValueError(f'goal must be a finite (x, y), got {goal!r}')
+        self.goal = goal[:2].copy()
+
+    def _check_pose(self, pose):
+        pose = np.asarray(pose, dtype=float).reshape(-1)
+        if pose.shape != (self.motion.pose_dim,) or not np.all(np.isfinite(pose)):
+            raise ValueError(f'pose must be {self.motion.pose_dim} finite numbers, got {pose}')
+        return pose
+
+    def goal_reached(self, pose) -> bool:
+        if self.goal is None:
+            return False
+        pose = self._check_pose(pose)
+        return bool(np.linalg.norm(pose[:2] - self.goal) < self.config.goal_eps)
+
+    def predict(self):
+        """Posterior over the archive: ``(mu (M, k), sigma (M,))``."""
+        mu, var = self._gp.query()
+        return mu, np.sqrt(var)
+
+    def ask(self, pose) -> Decision:
+        """Choose the next behaviour from ``pose`` (raises PlanningError if no path)."""
+        if self.goal is None:
+            raise RuntimeError('no goal: call set_goal() before ask()')
+        pose = self._check_pose(pose)
+        path = np.asarray(self.planner(pose[:2], self.goal), dtype=float)
+        waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
+        mu, sigma = self.predict()
+        predicted = self.motion.predict(pose, mu)
+        diff = predicted[:, :2] - waypoint
+        reward = -np.sqrt(np.einsum('ij,ij->i', diff, diff))
+        index = acquisition.ucb(reward, sigma, self.config.acquisition_ucb_alpha)
+        return Decision(index=index, waypoint=waypoint, predicted_gr=mu[index].copy(),
+                        predicted_pose=predicted[index].copy(), reward=float(reward[index]),
+                        sigma=float(sigma[index]), path=path)
+
+    def tell(self, index: int, observed_gr) -> None:
+        """Learn that behaviour ``index`` produced the generic reward ``observed_gr``."""
+        self._gp.add_sample(index, observed_gr)
+
+    @property
+    def observations(self):
+        """``(indices (N,), generic rewards (N, k))`` told so far."""
+        return np.array(self._gp.indices, dtype=int), self._gp.observed
+
+    def state_dict(self) -> dict:
+        """What was learned, as JSON-able plain lists."""
+        idx, grs = self.observations
+        return {'num_candidates': self.num_candidates, 'gr_dim': self.motion.gr_dim,
+                'config': self.config.to_dict(),
+                'goal': None if self.goal is None else self.goal.tolist(),
+                'indices': idx.tolist(), 'generic_rewards': grs.tolist()}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore what :meth:`state_dict` saved (same archive); replays the observations."""
+        if int(state.get('num_candidates', -1)) != self.num_candidates:
+            raise ValueError(f'state is for {state.get("num_candidates")} candidates, this '
+                             f'SELA has {self.num_candidates}')
+        if 'config' in state:
+            self.config = SELAConfig.from_dict(state['config'])
+        self.goal = None
+        if state.get('goal') is not None:
+            self.set_goal(state['goal'])
+        indices = list(state.get('indices', []))
+        grs = np.asarray(state.get('generic_rewards', []), dtype=float).reshape(
+            len(indices), self.motion.gr_dim)
+        self.reset_learning()
+        for i, y in zip(indices, grs):
+            self.tell(int(i), y)
