@@ -1,0 +1,312 @@
+"""The behaviour-performance map ("archive") SELA consumes: atomic save, validated load.
+
+An :class:`Archive` is what MAP-Elites leaves behind (see :mod:`sela_ros.map_elites`): for
+each of its ``M`` elites the 36 controller parameters, the raw behaviour descriptor, the
+generic reward ``(dx, dy, dyaw)`` it produced on the simulated intact robot and its fitness,
+plus a metadata dict that says how the map was built. SELA uses the generic reward as the
+prior mean of its GPs and the normalised descriptors as their inputs.
+
+On disk an archive is one compressed ``.npz`` holding the four arrays and the metadata as a
+JSON string; it is written atomically (temporary file in the same directory, fsync,
+``os.replace``) so that a reader never sees half a file. :func:`load_archive` checks
+everything a consumer relies on and raises :class:`ArchiveError` with a message that says
+what is wrong, what was expected and how to fix it.
+"""
+from __future__ import annotations
+
+import datetime
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: Version of the on-disk layout; bump it when keys or meanings change.
+ARCHIVE_FORMAT_VERSION = 1
+
+#: Simulator settings an archive was built with; a consumer's settings must match them.
+SIMULATOR_SETTING_KEYS = ('dt', 'gait_duration', 'controller_version', 'model_version')
+
+#: Metadata keys every archive carries (see docs/archive.md).
+REQUIRED_METADATA_KEYS = SIMULATOR_SETTING_KEYS + (
+    'descriptor_name',
+    'descriptor_bounds',
+    'fitness_name',
+    'grid_shape',
+    'n_evaluations',
+    'seed',
+    'created',
+    'sela_ros_version',
+    'format_version',
+)
+
+_ARRAY_KEYS = ('params', 'descriptors', 'generic_reward', 'fitness')
+_REBUILD_HINT = (
+    'Rebuild the archive with `sela-build-archive --out PATH` (see docs/archive.md), '
+    'or point the consumer at a matching archive.'
+)
+
+
+class ArchiveError(ValueError):
+    """An archive file or object is unusable: corrupt, incomplete or built for other settings."""
+
+
+def _sela_ros_version() -> str:
+    from sela_ros import __version__
+
+    return __version__
+
+
+def make_metadata(**values: Any) -> dict:
+    """Metadata dict with the bookkeeping keys filled in (created, versions).
+
+    Args:
+        **values: the other metadata values (simulator settings, descriptor, grid, ...).
+
+    Returns:
+        A new dict; ``created`` (UTC, ISO 8601), ``sela_ros_version`` and ``format_version``
+        are set unless given.
+    """
+    metadata = {
+        'created': datetime.datetime.now(datetime.UTC).isoformat(timespec='seconds'),
+        'sela_ros_version': _sela_ros_version(),
+        'format_version': ARCHIVE_FORMAT_VERSION,
+    }
+    metadata.update(values)
+    return metadata
+
+
+@dataclass
+class Archive:
+    """A behaviour-performance map.
+
+    Attributes:
+        params: ``(M, 36)`` controller parameters in ``[0, 1]``.
+        descriptors: ``(M, d)`` raw behaviour descriptors (the default descriptor is the final
+            ``(x, y)`` in metres, in the robot's frame at the start of the gait).
+        generic_reward: ``(M, 3)`` displacement ``(dx, dy, dyaw)`` on the intact robot, in the
+            start frame (metres, metres, radians).
+        fitness: ``(M,)`` the quality MAP-Elites maximised (higher is better).
+        metadata: how the map was built; keys in :data:`REQUIRED_METADATA_KEYS`.
+
+    Raises:
+        ArchiveError: on wrong shapes, non-finite values or missing metadata.
+    """
+
+    params: np.ndarray
+    descriptors: np.ndarray
+    generic_reward: np.ndarray
+    fitness: np.ndarray
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.params = np.asarray(self.params, dtype=np.float64)
+        self.descriptors = np.asarray(self.descriptors, dtype=np.float64)
+        self.generic_reward = np.asarray(self.generic_reward, dtype=np.float64)
+        self.fitness = np.asarray(self.fitness, dtype=np.float64)
+        self.metadata = dict(self.metadata)
+        _validate(self)
+
+    def __len__(self) -> int:
+        return self.params.shape[0]
+
+    @property
+    def descriptor_bounds(self) -> np.ndarray:
+        """``(d, 2)`` lower and upper bound of each descriptor dimension (from metadata)."""
+        return np.asarray(self.metadata['descriptor_bounds'], dtype=np.float64)
+
+    @property
+    def simulator_settings(self) -> dict:
+        """The simulator settings (dt, gait_duration, controller_version, model_version)."""
+        return {key: self.metadata[key] for key in SIMULATOR_SETTING_KEYS}
+
+    def normalised_descriptors(self) -> np.ndarray:
+        """Descriptors scaled to ``[0, 1]^d`` with the metadata bounds (clipped at the edges).
+
+        MAP-Elites files a gait that lands outside the bounds into the edge cell, so such a
+        descriptor is clipped to the edge, exactly where the grid keeps it.
+        """
+        bounds = self.descriptor_bounds
+        scaled = (self.descriptors - bounds[:, 0]) / (bounds[:, 1] - bounds[:, 0])
+        return np.clip(scaled, 0.0, 1.0)
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the archive as a compressed ``.npz``, atomically.
+
+        Args:
+            path: destination file; its directory is created if needed.
+
+        Returns:
+            The path written.
+        """
+        path = Path(path)
+        arrays = {key: getattr(self, key) for key in _ARRAY_KEYS}
+        arrays['metadata'] = np.array(json.dumps(self.metadata, sort_keys=True))
+        atomic_savez(path, **arrays)
+        return path
+
+
+def atomic_savez(path: str | os.PathLike, **arrays: np.ndarray) -> None:
+    """``np.savez_compressed`` to a temporary file beside ``path``, fsync, then rename over it.
+
+    A crash (even SIGKILL) leaves either the old file or the new one, never a partial one.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.tmp', dir=path.parent)
+    try:
+        with os.fdopen(fd, 'wb') as handle:
+            np.savez_compressed(handle, **arrays)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp_name, path)
+    except BaseException:
+        try:
+            os.unlink(tmp_name)
+        except FileNotFoundError:
+            pass
+        raise
+    dir_fd = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+
+
+def _validate(archive: Archive) -> None:
+    params, desc = archive.params, archive.descriptors
+    reward, fitness = archive.generic_reward, archive.fitness
+    if params.ndim != 2 or params.shape[1] != 36:
+        raise ArchiveError(f'params must have shape (M, 36), got {params.shape}')
+    m = params.shape[0]
+    if desc.ndim != 2 or desc.shape[0] != m or desc.shape[1] < 1:
+        raise ArchiveError(f'descriptors must have shape ({m}, d) with d >= 1, got {desc.shape}')
+    if reward.shape != (m, 3):
+        raise ArchiveError(f'generic_reward must have shape ({m}, 3), got {reward.shape}')
+    if fitness.shape != (m,):
+        raise ArchiveError(f'fitness must have shape ({m},), got {fitness.shape}')
+    for name in _ARRAY_KEYS:
+        values = getattr(archive, name)
+        if not np.all(np.isfinite(values)):
+            bad = int(np.count_nonzero(~np.isfinite(values)))
+            raise ArchiveError(f'{name} holds {bad} NaN or infinite value(s); expected finite')
+    if np.any(params < 0.0) or np.any(params > 1.0):
+        raise ArchiveError('params must lie in [0, 1] (controller parameters)')
+    missing = [key for key in REQUIRED_METADATA_KEYS if key not in archive.metadata]
+    if missing:
+        raise ArchiveError(f'metadata lacks key(s) {missing}; expected all of '
+                           f'{list(REQUIRED_METADATA_KEYS)}')
+    try:
+        bounds = np.asarray(archive.metadata['descriptor_bounds'], dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ArchiveError(f'metadata descriptor_bounds is not numeric: {exc}') from None
+    d = desc.shape[1]
+    if bounds.shape != (d, 2) or not np.all(np.isfinite(bounds)):
+        raise ArchiveError(f'metadata descriptor_bounds must be finite with shape ({d}, 2) '
+                           f'(low, high per descriptor dimension), got {bounds.tolist()}')
+    if np.any(bounds[:, 1] <= bounds[:, 0]):
+        raise ArchiveError(f'metadata descriptor_bounds must have low < high, got '
+                           f'{bounds.tolist()}')
+
+
+def _settings_equal(a: Any, b: Any) -> bool:
+    if isinstance(a, int | float) and isinstance(b, int | float) and not isinstance(a, bool):
+        return math.isclose(float(a), float(b), rel_tol=1e-9, abs_tol=1e-12)
+    return a == b
+
+
+def check_settings(metadata: dict, expected_settings: dict, source: str = 'archive') -> None:
+    """Raise :class:`ArchiveError` when ``metadata`` was built with other simulator settings.
+
+    Args:
+        metadata: an archive's metadata.
+        expected_settings: the consumer's settings, e.g. ``simulator_settings(dt, duration)``;
+            only the keys in :data:`SIMULATOR_SETTING_KEYS` are compared.
+        source: how to name the archive in the message (its path).
+    """
+    mismatches = []
+    for key in SIMULATOR_SETTING_KEYS:
+        if key not in expected_settings:
+            continue
+        if key not in metadata:
+            mismatches.append(f'{key}: archive has none, expected {expected_settings[key]!r}')
+        elif not _settings_equal(metadata[key], expected_settings[key]):
+            mismatches.append(f'{key}: archive has {metadata[key]!r}, '
+                              f'expected {expected_settings[key]!r}')
+    if mismatches:
+        raise ArchiveError(f'{source} was built with other simulator settings ('
+                           + '; '.join(mismatches) + '). Its generic rewards would not match '
+                           'what this simulator does. ' + _REBUILD_HINT)
+
+
+def load_archive(path: str | os.PathLike, expected_settings: dict | None = None) -> Archive:
+    """Load and validate an archive written by :meth:`Archive.save`.
+
+    Args:
+        path: the ``.npz`` file.
+        expected_settings: simulator settings the archive must have been built with (keys
+            ``dt``, ``gait_duration``, ``controller_version``, ``model_version``; others are
+            ignored), e.g. ``sim_bridge.hexapod.simulator_settings(dt, gait_duration)``.
+            ``None`` skips the check.
+
+    Returns:
+        The archive.
+
+    Raises:
+        ArchiveError: the file is missing, truncated or corrupt, lacks a key, has wrong shapes,
+            dtypes or NaNs, or was built with other simulator settings.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ArchiveError(f'no archive file at {path}. ' + _REBUILD_HINT)
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            present = set(npz.files)
+            missing = [key for key in _ARRAY_KEYS + ('metadata',) if key not in present]
+            if missing:
+                raise ArchiveError(f'{path} lacks key(s) {missing}; an archive holds '
+                                   f'{list(_ARRAY_KEYS) + ["metadata"]}. ' + _REBUILD_HINT)
+            arrays = {key: npz[key] for key in _ARRAY_KEYS}
+            metadata_text = npz['metadata']
+    except ArchiveError:
+        raise
+    except Exception as exc:  # BadZipFile, EOFError, zlib.error, ValueError: all corruption
+        raise ArchiveError(f'{path} is not a readable archive (truncated or corrupt: '
+                           f'{type(exc).__name__}: {exc}). ' + _REBUILD_HINT) from None
+
+    for key, values in arrays.items():
+        if not np.issubdtype(values.dtype, np.floating):
+            raise ArchiveError(f'{path}: {key} has dtype {values.dtype}, expected a float '
+                               'array. ' + _REBUILD_HINT)
+    if metadata_text.shape != () or metadata_text.dtype.kind != 'U':
+        raise ArchiveError(f'{path}: metadata must be a JSON string, got an array of dtype '
+                           f'{metadata_text.dtype} and shape {metadata_text.shape}. '
+                           + _REBUILD_HINT)
+    try:
+        metadata = json.loads(str(metadata_text))
+    except json.JSONDecodeError as exc:
+        raise ArchiveError(f'{path}: metadata is not valid JSON ({exc}). '
+                           + _REBUILD_HINT) from None
+    if not isinstance(metadata, dict):
+        raise ArchiveError(f'{path}: metadata must be a JSON object, got '
+                           f'{type(metadata).__name__}. ' + _REBUILD_HINT)
+    version = metadata.get('format_version')
+    if version != ARCHIVE_FORMAT_VERSION:
+        raise ArchiveError(f'{path} has archive format version {version!r}, this sela_ros '
+                           f'reads version {ARCHIVE_FORMAT_VERSION}. ' + _REBUILD_HINT)
+    try:
+        archive = Archive(metadata=metadata, **arrays)
+    except ArchiveError as exc:
+        raise ArchiveError(f'{path}: {exc}. ' + _REBUILD_HINT) from None
+    if expected_settings is not None:
+        check_settings(metadata, expected_settings, source=str(path))
+    return archive
+
+
+def default_archive_path() -> Path:
+    """Path of the archive shipped inside the installed package (``sela_ros/data``)."""
+    return Path(__file__).resolve().parent / 'data' / 'hexapod_archive.npz'

@@ -1,0 +1,261 @@
+"""``sela-build-archive``: build the hexapod's behaviour-performance map with MAP-Elites.
+
+Example (the shipped archive, see docs/archive.md)::
+
+    sela-build-archive --evaluations 30000 --batch-size 200 --workers 2 --seed 1 \\
+        --out sela_ros/data/hexapod_archive.npz --figure docs/figures/archive.png
+
+Before it starts, it times a few gaits here and prints how long the run will take. It
+checkpoints every ``--checkpoint-every`` batches (journalling the batches in between); after
+a crash or a kill, run the same command with ``--resume``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sela_ros.archive import Archive
+from sela_ros.map_elites import (
+    DaskEvaluator,
+    HexapodEvaluator,
+    MapElites,
+    ProcessPoolEvaluator,
+    SerialEvaluator,
+    SyntheticEvaluator,
+    default_run,
+)
+
+DEFAULT_GRID = (64, 64)
+DEFAULT_BOUNDS = (-0.6, 0.6, -0.6, 0.6)
+DESCRIPTOR_NAME = 'final_xy'
+FITNESS_NAME = 'arc_yaw_error'
+
+# Thresholds of the gait families that docs/archive.md and the summary count.
+FORWARD_DX, SIDEWAYS_DY, TURNING_DYAW = 0.1, 0.1, 0.5
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'must be a positive integer, got {text}')
+    return value
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f'must be a positive number, got {text}')
+    return value
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='sela-build-archive',
+        description='Build the behaviour-performance map (MAP-Elites over final (x, y), '
+                    'arc fitness) of the simulated intact hexapod.')
+    parser.add_argument('--evaluations', type=_positive_int, required=True,
+                        help='total number of gait evaluations')
+    parser.add_argument('--batch-size', type=_positive_int, default=200,
+                        help='gaits per batch (default 200)')
+    parser.add_argument('--workers', type=_positive_int, default=os.cpu_count() or 1,
+                        help='local worker processes (default: all cores)')
+    parser.add_argument('--seed', type=int, default=0, help='emitter seed (default 0)')
+    parser.add_argument('--out', type=Path, required=True, help='archive file (.npz) to write')
+    parser.add_argument('--figure', type=Path, default=None,
+                        help='also write a heat-map PNG of the archive here')
+    parser.add_argument('--checkpoint', type=Path, default=None,
+                        help='checkpoint file (default: OUT with suffix .checkpoint.npz)')
+    parser.add_argument('--checkpoint-every', type=_positive_int, default=5,
+                        help='full checkpoint every K batches (default 5; batches in between '
+                             'are journalled, so none is lost)')
+    parser.add_argument('--resume', action='store_true',
+                        help='continue from the checkpoint (same RNG stream)')
+    parser.add_argument('--dask-scheduler', default=None, metavar='ADDR',
+                        help='evaluate on a Dask distributed scheduler, e.g. '
+                             'tcp://127.0.0.1:8786, instead of local processes')
+    parser.add_argument('--grid', type=_positive_int, nargs=2, default=DEFAULT_GRID,
+                        metavar=('NX', 'NY'), help='grid cells in x and y (default 64 64)')
+    parser.add_argument('--bounds', type=float, nargs=4, default=DEFAULT_BOUNDS,
+                        metavar=('XMIN', 'XMAX', 'YMIN', 'YMAX'),
+                        help='descriptor bounds in metres (default -0.6 0.6 -0.6 0.6)')
+    parser.add_argument('--initial', type=_positive_int, default=None,
+                        help='random gaits before variation starts (default 5 batches)')
+    parser.add_argument('--variation', choices=('iso_line', 'polynomial'), default='iso_line')
+    parser.add_argument('--dt', type=_positive_float, default=1.0 / 240.0,
+                        help='physics time step in s (default 1/240)')
+    parser.add_argument('--gait-duration', type=_positive_float, default=3.0,
+                        help='duration of one gait in s (default 3)')
+    parser.add_argument('--synthetic', action='store_true',
+                        help='use the cheap synthetic evaluation function (tests, dry runs)')
+    parser.add_argument('--synthetic-delay', type=float, default=0.0,
+                        help='seconds per synthetic evaluation (emulates the simulator)')
+    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    return parser
+
+
+def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    xmin, xmax, ymin, ymax = args.bounds
+    if not all(math.isfinite(v) for v in args.bounds) or xmin >= xmax or ymin >= ymax:
+        parser.error(f'--bounds must be finite with XMIN < XMAX and YMIN < YMAX, got '
+                     f'{args.bounds}')
+    if args.synthetic_delay < 0:
+        parser.error('--synthetic-delay must be >= 0')
+    if args.resume and not _checkpoint_path(args).exists():
+        parser.error(f'--resume: no checkpoint at {_checkpoint_path(args)}')
+    if args.out.suffix != '.npz':
+        parser.error(f'--out must end in .npz, got {args.out}')
+
+
+def _checkpoint_path(args: argparse.Namespace) -> Path:
+    if args.checkpoint is not None:
+        return args.checkpoint
+    return args.out.with_name(args.out.stem + '.checkpoint.npz')
+
+
+def _format_duration(seconds: float) -> str:
+    seconds = max(0.0, seconds)
+    if seconds < 90:
+        return f'{seconds:.0f} s'
+    if seconds < 5400:
+        return f'{seconds / 60:.1f} min'
+    return f'{seconds / 3600:.1f} h'
+
+
+def time_per_evaluation(evaluate, n: int = 3, seed: int = 12345) -> float:
+    """Seconds per evaluation here, measured on ``n`` random gaits after one warm-up."""
+    rng = np.random.default_rng(seed)
+    evaluate(rng.random(36))  # builds the simulator (URDF, PyBullet) once per process
+    start = time.perf_counter()
+    for _ in range(n):
+        evaluate(rng.random(36))
+    return (time.perf_counter() - start) / n
+
+
+def gait_family_counts(archive: Archive) -> dict[str, int]:
+    """Elites walking forward, backward, sideways and turning (thresholds in the module)."""
+    gr = archive.generic_reward
+    return {'forward': int(np.count_nonzero(gr[:, 0] > FORWARD_DX)),
+            'backward': int(np.count_nonzero(gr[:, 0] < -FORWARD_DX)),
+            'sideways': int(np.count_nonzero(np.abs(gr[:, 1]) > SIDEWAYS_DY)),
+            'turning': int(np.count_nonzero(np.abs(gr[:, 2]) > TURNING_DYAW))}
+
+
+def archive_figure(archive: Archive, path: str | os.PathLike) -> Path:
+    """Heat-maps over the descriptor grid: fitness and dyaw of each elite."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    from sela_ros.map_elites import GridArchive
+
+    grid = GridArchive(archive.metadata['grid_shape'], archive.descriptor_bounds)
+    cells = grid.index_of(archive.descriptors)
+    fitness = np.full(grid.cells, np.nan)
+    dyaw = np.full(grid.cells, np.nan)
+    fitness[cells] = archive.fitness
+    dyaw[cells] = archive.generic_reward[:, 2]
+    (xmin, xmax), (ymin, ymax) = archive.descriptor_bounds
+    extent = (xmin, xmax, ymin, ymax)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), constrained_layout=True)
+    panels = [(fitness, 'fitness: -|yaw - arc yaw| (rad)', 'viridis', (-np.pi, 0)),
+              (dyaw, 'dyaw of the elite (rad)', 'twilight_shifted', (-np.pi, np.pi))]
+    for ax, (values, title, cmap, (vmin, vmax)) in zip(axes, panels):
+        image = ax.imshow(values.reshape(grid.dims).T, origin='lower', extent=extent,
+                          cmap=cmap, vmin=vmin, vmax=vmax, interpolation='nearest')
+        ax.set_xlabel('final x (m, forward)')
+        ax.set_ylabel('final y (m, left)')
+        ax.set_title(title)
+        fig.colorbar(image, ax=ax, shrink=0.85)
+    meta = archive.metadata
+    fig.suptitle(f'{len(archive)} elites / {grid.cells} cells, {meta["n_evaluations"]} '
+                 f'evaluations, dt {meta["dt"]:.5f} s, {meta["gait_duration"]} s gaits')
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    _check_args(parser, args)
+    checkpoint = _checkpoint_path(args)
+
+    if args.synthetic:
+        evaluate = SyntheticEvaluator(delay=args.synthetic_delay)
+        settings = evaluate.settings(args.dt, args.gait_duration)
+    else:
+        evaluate = HexapodEvaluator(dt=args.dt, gait_duration=args.gait_duration)
+        try:
+            settings = evaluate.settings()
+        except ValueError as exc:
+            parser.error(str(exc))
+
+    seconds = time_per_evaluation(evaluate)
+    if args.dask_scheduler:
+        executor = DaskEvaluator(args.dask_scheduler)
+    elif args.workers == 1:
+        executor = SerialEvaluator()
+    else:
+        executor = ProcessPoolEvaluator(args.workers)
+    try:
+        parallel = executor.workers
+        if not args.dask_scheduler:  # more processes than cores do not go faster
+            parallel = min(parallel, os.cpu_count() or 1)
+        if args.resume and checkpoint.exists():
+            run = MapElites.resume(checkpoint, evaluate, executor, args.checkpoint_every)
+            stored = run.info.get('settings')
+            if stored is not None and stored != settings:
+                parser.error(f'--resume: checkpoint {checkpoint} was made with simulator '
+                             f'settings {stored}, this run uses {settings}; start afresh')
+            print(f'resuming from {checkpoint}: {run.n_evaluations} evaluations done, '
+                  f'{run.archive.num_elites} cells filled', flush=True)
+        else:
+            run = default_run(evaluate, dims=args.grid,
+                              bounds=np.reshape(args.bounds, (2, 2)),
+                              batch_size=args.batch_size,
+                              n_initial=args.initial or 5 * args.batch_size, seed=args.seed,
+                              executor=executor, checkpoint_path=checkpoint,
+                              checkpoint_every=args.checkpoint_every,
+                              variation=args.variation)
+            run.info = {'settings': settings, 'seed': args.seed}
+        remaining = max(0, args.evaluations - run.n_evaluations)
+        print(f'{seconds:.3f} s per evaluation on one core here; {remaining} evaluations on '
+              f'{parallel} worker(s) will take about '
+              f'{_format_duration(remaining * seconds / parallel)}', flush=True)
+
+        start = time.perf_counter()
+        run.run(args.evaluations, progress=not args.no_progress)
+        wall = time.perf_counter() - start
+    finally:
+        executor.close()
+
+    archive = run.to_archive(**settings, descriptor_name=DESCRIPTOR_NAME,
+                             fitness_name=FITNESS_NAME, seed=run.info.get('seed', args.seed),
+                             damage='intact', batch_size=run.emitter.batch_size,
+                             evaluator='synthetic' if args.synthetic else 'hexapod')
+    archive.save(args.out)
+    size = args.out.stat().st_size
+    done = remaining
+    summary = {'evaluations': run.n_evaluations, 'this_session_evaluations': done,
+               'wall_s': round(wall, 1), 'evals_per_s': round(done / wall, 2) if wall else None,
+               'filled_cells': len(archive), 'cells': int(np.prod(args.grid)),
+               'fallen': run.n_invalid, **gait_family_counts(archive),
+               'file_bytes': size, 'out': str(args.out)}
+    if args.figure is not None:
+        summary['figure'] = str(archive_figure(archive, args.figure))
+    print(json.dumps(summary), flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
