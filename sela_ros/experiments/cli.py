@@ -1,0 +1,117 @@
+"""``sela-experiment``: run the paper's experiments with replicates, write results + figure.
+
+Usage::
+
+    sela-experiment toy --replicates 50 --seed 0 --out results/toy [--noise-std 0.1]
+
+Each scenario is one subcommand, registered in :data:`SCENARIOS`. To add one (e.g.
+``hexapod``), write a module with
+
+* ``add_arguments(parser)``: its own options (the common ``--replicates --seed --out
+  --workers`` are already there),
+* ``run(args, progress) -> dict``: the ``results.json`` document
+  ``{"scenario", "replicates", "methods": {name: {"success", "steps",
+  "learning_iterations"}}, ...}``; call ``progress()`` once per finished replicate,
+
+and add ``'hexapod': Scenario('help text', 'sela_ros.experiments.hexapod')`` to
+:data:`SCENARIOS`. The CLI writes ``results.json`` and ``figure.png`` for every scenario.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import sys
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Scenario:
+    help: str
+    module: str  # imported lazily: provides add_arguments(parser) and run(args, progress)
+
+
+SCENARIOS = {
+    'toy': Scenario('the toy simulation: a damaged point robot reaches (2, 2)',
+                    'sela_ros.experiments.toy'),
+    # 'hexapod': Scenario('the damaged hexapod reaches (2, 2)',
+    #                     'sela_ros.experiments.hexapod'),
+}
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {value}')
+    return value
+
+
+def _seed(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected an integer seed, got {text!r}') from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'expected a seed >= 0, got {value}')
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument('--replicates', type=_positive_int, required=True,
+                        help='number of replicates of every method')
+    common.add_argument('--seed', type=_seed, default=0, help='master seed (default 0)')
+    common.add_argument('--out', required=True,
+                        help='output directory (results.json, figure.png)')
+    common.add_argument('--workers', type=_positive_int, default=1,
+                        help='processes running replicates in parallel (default 1)')
+    common.add_argument('--quiet', action='store_true', help='no progress bar')
+    parser = argparse.ArgumentParser(
+        prog='sela-experiment',
+        description='Reproduce the SELA paper experiments with replicates.')
+    sub = parser.add_subparsers(dest='scenario', metavar='SCENARIO', required=True)
+    for name, scenario in SCENARIOS.items():
+        p = sub.add_parser(name, parents=[common], help=scenario.help,
+                           description=scenario.help)
+        importlib.import_module(scenario.module).add_arguments(p)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if os.path.exists(args.out) and not os.path.isdir(args.out):
+        parser.error(f'--out {args.out!r} exists and is not a directory')
+    try:
+        os.makedirs(args.out, exist_ok=True)
+    except OSError as err:
+        parser.error(f'cannot create --out directory {args.out!r}: {err.strerror}')
+    module = importlib.import_module(SCENARIOS[args.scenario].module)
+
+    from tqdm import tqdm
+
+    with tqdm(total=args.replicates, desc=args.scenario, unit='replicate', file=sys.stderr,
+              disable=args.quiet) as bar:
+        doc = module.run(args, progress=lambda: bar.update(1))
+    results_path = os.path.join(args.out, 'results.json')
+    tmp = results_path + '.tmp'
+    with open(tmp, 'w') as f:
+        json.dump(doc, f, indent=1)
+    os.replace(tmp, results_path)
+
+    from sela_ros.experiments.figures import plot_methods
+
+    plot_methods(doc, os.path.join(args.out, 'figure.png'))
+    for name, s in doc.get('summary', {}).items():
+        print(f'{name:16s} success {s["successes"]}/{doc["replicates"]}  median learning '
+              f'{s["median_learning_iterations"]:g}  median steps {s["median_steps"]:g}')
+    print(f'wrote {results_path} and {os.path.join(args.out, "figure.png")}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
