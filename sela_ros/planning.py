@@ -147,9 +147,10 @@ def astar_cells(grid: OccupancyGrid, start_cell, goal_cell):
     heap = [(_octile(start, goal), 0.0, counter, start)]
     closed = set()
     while heap:
-        _, cost, _, cell = heapq.heappop(heap)
+        cell = heapq.heappop(heap)[3]
         if cell in closed:
             continue
+        cost = g[cell]
         if cell == goal:
             path = []
             while cell is not None:

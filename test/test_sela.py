@@ -1,0 +1,136 @@
+"""SELA ask/tell: motion models, config, reaching the toy goal, state round trip."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from sela_ros.baselines import METHODS, run_oracle, run_sela
+from sela_ros.sela import (
+    SELA,
+    PointMotion,
+    SE2Motion,
+    SELAConfig,
+    observed_generic_reward,
+)
+from sela_ros.toy import ToyWorld, toy_problem
+
+
+def toy(noise_std=0.01, seed=0):
+    world = ToyWorld(360, noise_std=noise_std, rng=np.random.default_rng(seed))
+    return world, toy_problem(world)
+
+
+def test_se2_predict_and_afun_are_inverse():
+    m = SE2Motion()
+    pose = np.array([1.0, -2.0, 2.5])
+    gr = np.array([0.3, -0.1, 1.2])
+    after = m.predict(pose, gr)
+    np.testing.assert_allclose(after[:2], pose[:2] + [0.3 * math.cos(2.5) + 0.1 * math.sin(2.5),
+                                                      0.3 * math.sin(2.5) - 0.1 * math.cos(2.5)])
+    assert -math.pi <= after[2] < math.pi  # 3.7 rad wrapped
+    np.testing.assert_allclose(observed_generic_reward(pose, after, m), gr, atol=1e-12)
+    np.testing.assert_allclose(m.predict(pose, np.array([gr, gr]))[1], after)
+
+
+def test_point_afun():
+    np.testing.assert_allclose(observed_generic_reward([1, 1], [1.5, 0.5], PointMotion()),
+                               [0.5, -0.5])
+
+
+def test_config_dotted_names():
+    c = SELAConfig.from_dict({'gp.kernel.sigma': 0.2, 'acquisition.ucb.alpha': 0.1})
+    assert c.gp_kernel_sigma == 0.2 and c.acquisition_ucb_alpha == 0.1
+    assert c.goal_eps == 0.1 and c.gp_noise == 0.001
+    assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
+                                'acquisition.ucb.alpha', 'planner.lookahead', 'goal.eps'}
+    with pytest.raises(ValueError, match="unknown SELA parameter.*gp.kernel.sgima"):
+        SELAConfig.from_dict({'gp.kernel.sgima': 0.2})
+    with pytest.raises(ValueError, match='goal.eps'):
+        SELAConfig(goal_eps=-1.0)
+
+
+def test_constructor_checks_shapes():
+    with pytest.raises(ValueError, match='prior_gr'):
+        SELA(np.zeros((5, 1)), np.zeros((5, 2)), SE2Motion())
+    with pytest.raises(ValueError, match='normalised'):
+        SELA(np.full((5, 1), 2.0), np.zeros((5, 2)), PointMotion())
+    sela = SELA(np.zeros((5, 1)), np.zeros((5, 2)), PointMotion())
+    with pytest.raises(RuntimeError, match='goal'):
+        sela.ask([0.0, 0.0])
+    sela.set_goal([1.0, 1.0])
+    with pytest.raises(ValueError, match='pose'):
+        sela.ask([0.0, 0.0, 0.0])
+
+
+def test_ask_decision_on_intact_prior():
+    world, problem = toy(noise_std=0.0)
+    sela = problem.make_sela()
+    d = sela.ask(np.zeros(2))
+    # The intact model says: step at 45 degrees lands on the waypoint.
+    np.testing.assert_allclose(d.waypoint, [0.1 / math.sqrt(2)] * 2, atol=1e-9)
+    assert abs(world.thetas[d.index] - math.pi / 4) <= math.pi / 360
+    assert d.reward == pytest.approx(-np.linalg.norm(d.predicted_pose - d.waypoint))
+    assert d.sigma == pytest.approx(1.0)
+
+
+def test_tell_learns_the_damage():
+    world, problem = toy(noise_std=0.0)
+    sela = problem.make_sela()
+    d = sela.ask(np.zeros(2))
+    after = world.execute(d.index)
+    sela.tell(d.index, observed_generic_reward(np.zeros(2), after, sela.motion))
+    mu, sigma = sela.predict()
+    np.testing.assert_allclose(mu[d.index], world.damaged_generic_reward()[d.index], atol=1e-3)
+    assert sigma[d.index] < 0.05
+    d2 = sela.ask(world.true_pose())
+    assert d2.index != d.index
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_sela_reaches_goal_nearly_as_fast_as_the_oracle(seed):
+    world, problem = toy(seed=seed)
+    res = run_sela(world, problem, np.random.default_rng(seed))
+    assert res.success
+    assert np.linalg.norm(world.true_pose() - [2.0, 2.0]) < 0.1
+    oracle = run_oracle(world, problem, np.random.default_rng(seed))
+    assert oracle.success and oracle.steps == 28
+    assert res.steps <= 31 and res.learning_iterations == 0
+
+
+def test_every_method_returns_a_result():
+    for name, run in METHODS.items():
+        world, problem = toy(seed=3)
+        res = run(world, problem, np.random.default_rng(3))
+        assert res.steps <= problem.max_steps, name
+        if name in ('sela', 'oracle'):
+            assert res.learning_iterations == 0
+        else:
+            assert res.learning_iterations > 0, name
+
+
+def test_state_dict_round_trip_through_json():
+    world, problem = toy(seed=4)
+    sela = problem.make_sela()
+    pose = world.observed_pose()
+    for _ in range(5):
+        d = sela.ask(pose)
+        after = world.execute(d.index)
+        sela.tell(d.index, observed_generic_reward(pose, after, sela.motion))
+        pose = after
+    state = json.loads(json.dumps(sela.state_dict()))
+    other = problem.make_sela()
+    other.load_state_dict(state)
+    np.testing.assert_allclose(other.predict()[0], sela.predict()[0], atol=1e-12)
+    assert other.observations[0].tolist() == sela.observations[0].tolist()
+    assert other.ask(pose).index == sela.ask(pose).index
+    sela.reset_learning()
+    assert len(sela.observations[0]) == 0
+    with pytest.raises(ValueError, match='candidates'):
+        SELA(np.zeros((3, 1)), np.zeros((3, 2)), PointMotion()).load_state_dict(state)
+
+
+def test_goal_reached():
+    sela = SELA(np.zeros((2, 1)), np.zeros((2, 2)), PointMotion(), goal=[2.0, 2.0])
+    assert sela.goal_reached([1.95, 2.05])
+    assert not sela.goal_reached([1.9, 1.9])
