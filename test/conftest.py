@@ -38,6 +38,10 @@ def pytest_configure(config):
     os.environ['ROS_DOMAIN_ID'] = os.environ['SELA_TEST_DOMAIN_ID']
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    if not os.environ.get('AMENT_PREFIX_PATH'):
+        import sys
+
+        os.environ['AMENT_PREFIX_PATH'] = sys.prefix  # the .venv is the package's prefix
     os.environ.setdefault('ROS_LOG_DIR', os.path.join(tempfile.gettempdir(), 'sela_ros_test_logs'))
 
 

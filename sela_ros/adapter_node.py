@@ -1,0 +1,305 @@
+"""The ``sela_adapter`` node: the archive, the GPs and UCB; chooses gaits and learns.
+
+Each step (a small state machine driven by a wall-clock timer, so no callback ever waits):
+
+1. call ``/planner/make_plan`` from the latest observed pose to the goal, and take the
+   waypoint the planner publishes on ``/sela/target`` for that request (same stamp);
+2. ``SELA.ask`` picks a behaviour; publish the prediction on ``/sela/prediction`` and the
+   36 parameters on ``/hexapod/behavior`` (with a command id);
+3. the matching ``/hexapod/behavior_outcome`` arrives: learn from it when adapting, publish
+   the specialised reward observed on ``/sela/reward``;
+4. wait (at most ``detector_timeout`` s) for the damage detector's verdict on that outcome on
+   ``/diagnostics``: if it decided to adapt, it has called ``/sela_adapter/adapt`` first.
+
+The mission starts trusting the intact map; ``/sela_adapter/adapt`` starts adaptation, or
+restarts it from scratch when it was running. Progress is published on ``/diagnostics``
+(name ``sela_adapter: mission``) once per step.
+"""
+import math
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PointStamped, PoseStamped
+from nav_msgs.msg import Odometry
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from std_msgs.msg import Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+
+from sela_ros import conversions as conv
+from sela_ros.archive import ArchiveError, default_archive_path, load_archive
+from sela_ros.mission import MissionLogic, make_sela
+from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+
+DETECTOR_STATUS = 'damage_detector: prediction error'
+MISSION_STATUS = 'sela_adapter: mission'
+SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps')
+
+
+class SelaAdapter(Node):
+    def __init__(self):
+        super().__init__('sela_adapter')
+        self.declare_parameter('archive', '')
+        self.declare_parameter('gp.kernel.sigma', 0.1)
+        self.declare_parameter('gp.noise', 0.001)
+        self.declare_parameter('acquisition.ucb.alpha', 0.05)
+        self.declare_parameter('goal.eps', 0.1)
+        self.declare_parameter('max_steps', 100)
+        self.declare_parameter('detector_timeout', 2.0)
+        self.declare_parameter('outcome_timeout', 30.0)
+        self.declare_parameter('adapt_on_start', False)
+        self.declare_parameter('frame_id', 'odom')
+
+        self.frame_id = self.get_parameter('frame_id').value
+        path = self.get_parameter('archive').value or str(default_archive_path())
+        self.archive = load_archive(path)  # a bad archive stops start-up with a clear error
+        self.sela = make_sela(self.archive,
+                              {k: self.get_parameter(k).value for k in SELA_KEYS})
+        self.logic = MissionLogic(self.sela, self.get_parameter('adapt_on_start').value)
+        self.max_steps = int(self.get_parameter('max_steps').value)
+        self.get_logger().info(f'archive {path}: {len(self.archive)} behaviours')
+
+        self.wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.state = 'idle'
+        self.goal = None
+        self.odom_pose = None
+        self.pose = None  # latest observed pose (from outcomes), None before the first one
+        self.next_id = 1
+        self.pending = {}
+        self.targets = {}
+        self.steps = 0
+        self.result = None
+
+        self.behavior_pub = self.create_publisher(Float64MultiArray, '/hexapod/behavior',
+                                                  COMMAND_QOS)
+        self.prediction_pub = self.create_publisher(Float64MultiArray, '/sela/prediction',
+                                                    COMMAND_QOS)
+        self.reward_pub = self.create_publisher(Float64, '/sela/reward', COMMAND_QOS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
+        self.create_subscription(PoseStamped, '/goal_pose', self.goal_callback, LATCHED_QOS)
+        self.create_subscription(Odometry, '/hexapod/odom', self.odom_callback, STATE_QOS)
+        self.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
+                                 self.outcome_callback, OUTCOME_QOS)
+        self.create_subscription(PointStamped, '/sela/target', self.target_callback,
+                                 LATCHED_QOS)
+        self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback,
+                                 STATE_QOS)
+        self.plan_client = self.create_client(GetPlan, '/planner/make_plan')
+        self.create_service(Trigger, '/sela_adapter/adapt', self.adapt_callback)
+        self.add_on_set_parameters_callback(self.parameters_callback)
+        self.timer = self.create_timer(0.01, self.tick, clock=self.wall)
+
+    # --- inputs --------------------------------------------------------------------------
+
+    def goal_callback(self, msg):
+        try:
+            goal = conv.goal_from_pose_stamped(msg, self.frame_id)
+        except conv.MessageError as exc:
+            self.get_logger().error(f'goal rejected: {exc}')
+            return
+        self.goal = goal
+        self.sela.set_goal(goal)
+        self.steps = 0
+        self.result = None
+        if self.state in ('idle', 'done'):
+            self.state = 'ready'
+        self.get_logger().info(f'new goal ({goal[0]:.2f}, {goal[1]:.2f})')
+
+    def odom_callback(self, msg):
+        try:
+            self.odom_pose = conv.pose_from_odometry(msg)
+        except conv.MessageError as exc:
+            self.get_logger().error(f'ignored odometry: {exc}')
+
+    def target_callback(self, msg):
+        try:
+            self.targets[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = \
+                conv.point_from_msg(msg)
+        except conv.MessageError as exc:
+            self.get_logger().error(f'ignored target: {exc}')
+
+    def outcome_callback(self, msg):
+        try:
+            outcome = conv.outcome_from_msg(msg)
+        except conv.MessageError as exc:
+            self.get_logger().error(f'ignored outcome: {exc}')
+            return
+        if self.state != 'executing' or outcome.behavior_id != self.pending.get('id'):
+            self.get_logger().debug(f'outcome {outcome.behavior_id} pairs with no command of '
+                                    'this adapter: ignored')
+            return
+        self._on_outcome(outcome)
+
+    def diagnostics_callback(self, msg):
+        if self.state != 'verdict':
+            return
+        for status in msg.status:
+            if status.name != DETECTOR_STATUS:
+                continue
+            values = {kv.key: kv.value for kv in status.values}
+            if values.get('behavior_id') == str(self.pending.get('id')):
+                self.state = 'ready'
+
+    def adapt_callback(self, request, response):
+        restarting = self.logic.adapting
+        self.logic.adapt()
+        response.success = True
+        response.message = ('adaptation restarted from scratch' if restarting
+                            else 'adaptation started') + \
+            f' ({len(self.sela.observations[0])} observation(s))'
+        self.get_logger().warn(response.message)
+        return response
+
+    def parameters_callback(self, params):
+        for param in params:
+            if param.name in ('detector_timeout', 'outcome_timeout'):
+                if not (isinstance(param.value, (int, float)) and param.value > 0):
+                    return SetParametersResult(successful=False,
+                                               reason=f'{param.name} must be > 0 (s)')
+            elif param.name == 'max_steps':
+                if not (isinstance(param.value, int) and param.value > 0):
+                    return SetParametersResult(successful=False,
+                                               reason='max_steps must be an integer > 0')
+                self.max_steps = param.value
+            elif param.name in SELA_KEYS or param.name in ('archive', 'adapt_on_start'):
+                return SetParametersResult(
+                    successful=False, reason=f'{param.name} can only be set at start-up')
+        return SetParametersResult(successful=True)
+
+    # --- the step state machine ----------------------------------------------------------
+
+    def tick(self):
+        now = self.wall.now().nanoseconds * 1e-9
+        if self.state == 'ready':
+            self._start_step(now)
+        elif self.state == 'planning':
+            self._finish_planning(now)
+        elif self.state == 'executing' and now > self.pending['deadline']:
+            self.get_logger().error(f"no outcome for command {self.pending['id']} within "
+                                    f"{self.get_parameter('outcome_timeout').value} s; "
+                                    'sending it again')
+            self._send(now)
+        elif self.state == 'verdict' and now > self.pending['deadline']:
+            self.state = 'ready'
+
+    def _start_step(self, now):
+        pose = self.pose if self.pose is not None else self.odom_pose
+        if pose is None or self.goal is None:
+            return
+        if self.sela.goal_reached(pose):
+            return self._finish(True, pose)
+        if self.steps >= self.max_steps:
+            return self._finish(False, pose)
+        if not self.plan_client.service_is_ready():
+            return
+        self.steps += 1
+        stamp = conv.time_to_msg(self.steps)  # a unique stamp pairs request and target
+        request = GetPlan.Request()
+        request.start = conv.pose_stamped(pose[:2], pose[2], stamp, self.frame_id)
+        request.goal = conv.pose_stamped(self.goal, 0.0, stamp, self.frame_id)
+        self.pending = {'pose': pose, 'stamp': (stamp.sec, stamp.nanosec),
+                        'future': self.plan_client.call_async(request),
+                        'deadline': now + 10.0}
+        self.state = 'planning'
+
+    def _finish_planning(self, now):
+        future = self.pending['future']
+        if not future.done():
+            if now > self.pending['deadline']:
+                self.get_logger().error('planner did not answer; retrying')
+                self.steps -= 1
+                self.state = 'ready'
+            return
+        if not future.result().plan.poses:
+            self.get_logger().error('no plan to the goal (see /diagnostics); waiting for a '
+                                    'new goal')
+            self.steps -= 1
+            self.state = 'idle'
+            return
+        waypoint = self.targets.pop(self.pending['stamp'], None)
+        if waypoint is None:
+            return  # the target message is still on its way
+        self.targets.clear()
+        decision = self.logic.decide(self.pending['pose'], waypoint)
+        self.pending.update(decision=decision, waypoint=waypoint, id=self.next_id)
+        self.next_id += 1
+        self.prediction_pub.publish(conv.prediction_to_msg(self.pending['id'],
+                                                           decision.predicted_gr))
+        self._send(now)
+
+    def _send(self, now):
+        params = self.archive.params[self.pending['decision'].index]
+        self.behavior_pub.publish(conv.behavior_to_msg(params, self.pending['id']))
+        self.pending['deadline'] = now + float(self.get_parameter('outcome_timeout').value)
+        self.state = 'executing'
+
+    def _on_outcome(self, outcome):
+        decision = self.pending['decision']
+        record = self.logic.outcome(decision, self.pending['pose'], outcome.generic_reward,
+                                    fallen=outcome.fallen)
+        self.pose = outcome.end_pose
+        reward = -float(np.linalg.norm(self.pending['waypoint'] - outcome.end_pose[:2]))
+        self.reward_pub.publish(Float64(data=reward))
+        self._publish_status(DiagnosticStatus.OK, 'step', record, reward)
+        now = self.wall.now().nanoseconds * 1e-9
+        self.pending['deadline'] = now + float(self.get_parameter('detector_timeout').value)
+        self.state = 'verdict'
+
+    def _finish(self, success, pose):
+        self.state = 'done'
+        self.result = success
+        level = DiagnosticStatus.OK if success else DiagnosticStatus.ERROR
+        message = 'goal reached' if success else f'goal not reached in {self.max_steps} steps'
+        self.get_logger().info(f'{message} after {self.steps} steps, pose '
+                               f'({pose[0]:.2f}, {pose[1]:.2f})')
+        self._publish_status(level, message, None, None)
+
+    def _publish_status(self, level, message, record, reward):
+        status = DiagnosticStatus(level=level, name=MISSION_STATUS, message=message,
+                                  hardware_id='sela_ros')
+        values = {'state': self.state, 'steps': self.steps,
+                  'adapting': self.logic.adapting, 'adaptations': self.logic.adaptations,
+                  'observations': len(self.sela.observations[0])}
+        if record is not None:
+            values.update(step=record.step, behavior_id=self.pending['id'],
+                          behavior_index=record.behavior_index,
+                          pose=_fmt(record.pose), waypoint=_fmt(record.waypoint),
+                          predicted_gr=_fmt(record.predicted_gr),
+                          observed_gr=_fmt(record.observed_gr), reward=f'{reward:.6f}',
+                          end_pose=_fmt(self.pose), fallen=record.fallen)
+        if self.result is not None:
+            values['success'] = self.result
+        status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
+        msg = DiagnosticArray()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.status = [status]
+        self.diag_pub.publish(msg)
+
+
+def _fmt(values):
+    return ' '.join(f'{float(v):.6f}' if math.isfinite(float(v)) else 'nan' for v in values)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SelaAdapter()
+        rclpy.spin(node)
+    except ArchiveError as exc:
+        rclpy.logging.get_logger('sela_adapter').fatal(str(exc))
+        raise SystemExit(2) from exc
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

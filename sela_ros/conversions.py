@@ -1,0 +1,280 @@
+"""Every conversion between ROS messages and numpy arrays, with validation at the edge.
+
+Nodes call these and nothing else touches message fields, so the wire formats below are
+defined in one place (and documented in the README):
+
+* ``/hexapod/behavior`` (``std_msgs/Float64MultiArray``): the 36 controller parameters in
+  ``data``; the command id travels in ``layout.dim[0].label`` as ``behavior_id=<n>``. A bare
+  36-value array (e.g. from ``ros2 topic pub``) is accepted and gets an id from the bridge.
+* ``/hexapod/behavior_outcome`` (``std_msgs/Float64MultiArray``): a flat record whose field
+  names are listed, in order, in ``layout.dim[0].label``; ``data[0]`` is the id of the command
+  it answers, so each command pairs with exactly one outcome.
+* ``/sela/prediction`` (``std_msgs/Float64MultiArray``): ``[behavior_id, dx, dy, dyaw]``,
+  what the adapter expected the command to do, for the damage detector.
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PointStamped, PoseStamped, Quaternion
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from nav_msgs.msg import Odometry, Path
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+N_PARAMS = 36
+BEHAVIOR_ID_PREFIX = 'behavior_id='
+OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
+                  'end_x', 'end_y', 'end_yaw', 'fallen', 'sim_time',
+                  'duty_0', 'duty_1', 'duty_2', 'duty_3', 'duty_4', 'duty_5')
+OUTCOME_LABEL = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS)
+PREDICTION_LABEL = 'prediction:behavior_id,dx,dy,dyaw'
+
+
+class MessageError(ValueError):
+    """A message that cannot be used: says what was wrong and what was expected."""
+
+
+@dataclass
+class BehaviorOutcome:
+    """What one executed behaviour did (the sim_bridge's answer to one command)."""
+
+    behavior_id: int
+    generic_reward: np.ndarray  # (dx, dy, dyaw) in the robot frame at the start
+    start_pose: np.ndarray  # observed (x, y, yaw) in odom before the gait
+    end_pose: np.ndarray  # observed (x, y, yaw) in odom after the gait
+    fallen: bool = False
+    sim_time: float = 0.0
+    duty_factors: np.ndarray = field(default_factory=lambda: np.zeros(6))
+
+
+# --- small helpers -------------------------------------------------------------------------
+
+
+def yaw_to_quaternion(yaw):
+    q = Quaternion()
+    q.z = math.sin(yaw / 2.0)
+    q.w = math.cos(yaw / 2.0)
+    return q
+
+
+def quaternion_to_yaw(q):
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def time_to_msg(seconds):
+    seconds = float(seconds)
+    sec = int(math.floor(seconds))
+    nanosec = int(round((seconds - sec) * 1e9))
+    if nanosec >= 1_000_000_000:
+        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def time_from_msg(stamp):
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def _finite_array(values, name, length=None):
+    try:
+        array = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise MessageError(f'{name}: expected numbers, got {values!r}') from exc
+    if length is not None and array.size != length:
+        raise MessageError(f'{name}: expected {length} values, got {array.size}')
+    bad = ~np.isfinite(array)
+    if bad.any():
+        raise MessageError(f'{name}: value {int(np.flatnonzero(bad)[0])} is '
+                           f'{array[bad][0]}; expected finite numbers')
+    return array
+
+
+# --- behaviour commands --------------------------------------------------------------------
+
+
+def validate_behavior_params(params):
+    """Return the parameters as a (36,) float array, or raise MessageError saying why not."""
+    array = _finite_array(params, 'behavior', N_PARAMS)
+    out = (array < 0.0) | (array > 1.0)
+    if out.any():
+        i = int(np.flatnonzero(out)[0])
+        raise MessageError(f'behavior: parameter {i} is {array[i]}; '
+                           'expected every parameter in [0, 1]')
+    return array
+
+
+def behavior_to_msg(params, behavior_id):
+    params = validate_behavior_params(params)
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=f'{BEHAVIOR_ID_PREFIX}{int(behavior_id)}',
+                                          size=N_PARAMS, stride=N_PARAMS)]
+    msg.data = params.tolist()
+    return msg
+
+
+def behavior_from_msg(msg):
+    """Return ``(params, behavior_id)``; ``behavior_id`` is None when the sender gave none."""
+    params = validate_behavior_params(msg.data)
+    behavior_id = None
+    if msg.layout.dim:
+        label = msg.layout.dim[0].label
+        if label.startswith(BEHAVIOR_ID_PREFIX):
+            text = label[len(BEHAVIOR_ID_PREFIX):]
+            try:
+                behavior_id = int(text)
+            except ValueError as exc:
+                raise MessageError(f'behavior: id {text!r} in layout label is not an integer; '
+                                   f"expected '{BEHAVIOR_ID_PREFIX}<n>'") from exc
+            if behavior_id < 0:
+                raise MessageError(f'behavior: id {behavior_id} is negative')
+    return params, behavior_id
+
+
+# --- outcomes ------------------------------------------------------------------------------
+
+
+def outcome_to_msg(outcome):
+    values = [float(outcome.behavior_id), *np.asarray(outcome.generic_reward, float),
+              *np.asarray(outcome.start_pose, float), *np.asarray(outcome.end_pose, float),
+              1.0 if outcome.fallen else 0.0, float(outcome.sim_time),
+              *np.asarray(outcome.duty_factors, float)]
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=OUTCOME_LABEL, size=len(values),
+                                          stride=len(values))]
+    msg.data = values
+    return msg
+
+
+def outcome_from_msg(msg):
+    if not msg.layout.dim or msg.layout.dim[0].label != OUTCOME_LABEL:
+        got = msg.layout.dim[0].label if msg.layout.dim else '(no layout)'
+        raise MessageError(f'behavior_outcome: layout label {got!r} is not {OUTCOME_LABEL!r}')
+    values = _finite_array(msg.data, 'behavior_outcome', len(OUTCOME_FIELDS))
+    behavior_id = values[0]
+    if behavior_id < 0 or behavior_id != int(behavior_id):
+        raise MessageError(f'behavior_outcome: id {behavior_id} is not a non-negative integer')
+    return BehaviorOutcome(behavior_id=int(behavior_id), generic_reward=values[1:4].copy(),
+                           start_pose=values[4:7].copy(), end_pose=values[7:10].copy(),
+                           fallen=bool(values[10] >= 0.5), sim_time=float(values[11]),
+                           duty_factors=values[12:18].copy())
+
+
+def prediction_to_msg(behavior_id, generic_reward):
+    gr = _finite_array(generic_reward, 'prediction', 3)
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=PREDICTION_LABEL, size=4, stride=4)]
+    msg.data = [float(behavior_id), *gr.tolist()]
+    return msg
+
+
+def prediction_from_msg(msg):
+    if not msg.layout.dim or msg.layout.dim[0].label != PREDICTION_LABEL:
+        raise MessageError(f'prediction: layout label is not {PREDICTION_LABEL!r}')
+    values = _finite_array(msg.data, 'prediction', 4)
+    if values[0] < 0 or values[0] != int(values[0]):
+        raise MessageError(f'prediction: id {values[0]} is not a non-negative integer')
+    return int(values[0]), values[1:4].copy()
+
+
+# --- poses, goals, paths -------------------------------------------------------------------
+
+
+def odometry_msg(pose, twist=(0.0, 0.0, 0.0), stamp=0.0, frame_id='odom',
+                 child_frame_id='base_link', z=0.0):
+    msg = Odometry()
+    msg.header.stamp = time_to_msg(stamp)
+    msg.header.frame_id = frame_id
+    msg.child_frame_id = child_frame_id
+    msg.pose.pose.position.x = float(pose[0])
+    msg.pose.pose.position.y = float(pose[1])
+    msg.pose.pose.position.z = float(z)
+    msg.pose.pose.orientation = yaw_to_quaternion(float(pose[2]))
+    msg.twist.twist.linear.x = float(twist[0])
+    msg.twist.twist.linear.y = float(twist[1])
+    msg.twist.twist.angular.z = float(twist[2])
+    return msg
+
+
+def pose_from_odometry(msg):
+    p = msg.pose.pose
+    pose = np.array([p.position.x, p.position.y, quaternion_to_yaw(p.orientation)])
+    return _finite_array(pose, 'odometry pose', 3)
+
+
+def goal_from_pose_stamped(msg, expected_frame='odom'):
+    """Return the goal (x, y) of a PoseStamped; the frame must be ``expected_frame``."""
+    frame = msg.header.frame_id
+    if frame not in (expected_frame, ''):
+        raise MessageError(f"goal_pose: frame '{frame}' is not supported; "
+                           f"send the goal in '{expected_frame}'")
+    return _finite_array([msg.pose.position.x, msg.pose.position.y], 'goal_pose', 2)
+
+
+def pose_stamped(xy, yaw=0.0, stamp=0.0, frame_id='odom'):
+    msg = PoseStamped()
+    msg.header.stamp = time_to_msg(stamp) if not isinstance(stamp, Time) else stamp
+    msg.header.frame_id = frame_id
+    msg.pose.position.x = float(xy[0])
+    msg.pose.position.y = float(xy[1])
+    msg.pose.orientation = yaw_to_quaternion(float(yaw))
+    return msg
+
+
+def point_stamped(xy, stamp=0.0, frame_id='odom'):
+    msg = PointStamped()
+    msg.header.stamp = time_to_msg(stamp) if not isinstance(stamp, Time) else stamp
+    msg.header.frame_id = frame_id
+    msg.point.x = float(xy[0])
+    msg.point.y = float(xy[1])
+    return msg
+
+
+def point_from_msg(msg):
+    return _finite_array([msg.point.x, msg.point.y], 'point', 2)
+
+
+def path_to_msg(path_xy, stamp=0.0, frame_id='odom'):
+    msg = Path()
+    msg.header.stamp = time_to_msg(stamp) if not isinstance(stamp, Time) else stamp
+    msg.header.frame_id = frame_id
+    path_xy = np.asarray(path_xy, dtype=float).reshape(-1, 2)
+    for i, xy in enumerate(path_xy):
+        nxt = path_xy[min(i + 1, len(path_xy) - 1)]
+        prev = path_xy[max(i - 1, 0)]
+        heading = math.atan2(nxt[1] - prev[1], nxt[0] - prev[0]) if len(path_xy) > 1 else 0.0
+        msg.poses.append(pose_stamped(xy, heading, msg.header.stamp, frame_id))
+    return msg
+
+
+def path_from_msg(msg):
+    xy = [[p.pose.position.x, p.pose.position.y] for p in msg.poses]
+    return _finite_array(xy, 'path').reshape(-1, 2)
+
+
+def occupancy_grid_to_msg(occupancy, resolution, origin_xy, stamp=0.0, frame_id='odom'):
+    """``occupancy``: (height, width) array, row 0 at ``origin_xy`` (REP-103 map layout)."""
+    occupancy = np.asarray(occupancy)
+    msg = OccupancyGridMsg()
+    msg.header.stamp = time_to_msg(stamp) if not isinstance(stamp, Time) else stamp
+    msg.header.frame_id = frame_id
+    msg.info.resolution = float(resolution)
+    msg.info.height, msg.info.width = (int(v) for v in occupancy.shape)
+    msg.info.origin.position.x = float(origin_xy[0])
+    msg.info.origin.position.y = float(origin_xy[1])
+    msg.info.origin.orientation.w = 1.0
+    msg.data = np.where(occupancy > 0, 100, 0).astype(np.int8).reshape(-1).tolist()
+    return msg
+
+
+def occupancy_grid_from_msg(msg):
+    """Return ``(occupied (height, width) bool, resolution, origin_xy)``; unknown is occupied."""
+    h, w = msg.info.height, msg.info.width
+    data = np.asarray(msg.data, dtype=np.int16)
+    if data.size != h * w:
+        raise MessageError(f'occupancy grid: {data.size} cells for {h}x{w}')
+    if not (msg.info.resolution > 0 and math.isfinite(msg.info.resolution)):
+        raise MessageError(f'occupancy grid: resolution {msg.info.resolution} must be > 0')
+    occupied = (data.reshape(h, w) >= 50) | (data.reshape(h, w) < 0)
+    origin = _finite_array([msg.info.origin.position.x, msg.info.origin.position.y],
+                           'occupancy grid origin', 2)
+    return occupied, float(msg.info.resolution), origin

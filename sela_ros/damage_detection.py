@@ -1,0 +1,90 @@
+"""Damage detection: is the robot still doing what its model predicts? (ROS-free)
+
+The paper's outer loop adapts only after a *significant performance drop*. Here the drop is
+measured on the generic reward: the error between the displacement a behaviour was
+predicted to produce and the displacement observed,
+
+    error = ||(dx, dy)_observed - (dx, dy)_predicted|| + yaw_weight * |wrap(dyaw_o - dyaw_p)|
+
+averaged over the last ``window`` outcomes. The detector fires when that average exceeds
+``threshold``, then stays quiet for ``cooldown`` outcomes so that the adaptation it
+triggered has time to learn before it can be restarted.
+"""
+import math
+from collections import deque
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Damage detector parameters (``detection.*`` in config/sela.yaml)."""
+
+    threshold: float = 0.1
+    yaw_weight: float = 0.2
+    window: int = 1
+    cooldown: int = 5
+
+    def __post_init__(self):
+        for name in ('threshold', 'yaw_weight'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value < 0:
+                raise ValueError(f'detection.{name} must be a finite number >= 0, got {value!r}')
+        for name in ('window', 'cooldown'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < (
+                    1 if name == 'window' else 0):
+                raise ValueError(f'detection.{name} must be an integer >= '
+                                 f"{1 if name == 'window' else 0}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The detector's judgement of one outcome."""
+
+    error: float
+    mean_error: float
+    fire: bool
+
+
+def prediction_error(predicted_gr, observed_gr, yaw_weight):
+    dx = float(observed_gr[0]) - float(predicted_gr[0])
+    dy = float(observed_gr[1]) - float(predicted_gr[1])
+    error = math.hypot(dx, dy)
+    if len(predicted_gr) > 2 and len(observed_gr) > 2:
+        dyaw = math.remainder(float(observed_gr[2]) - float(predicted_gr[2]), 2 * math.pi)
+        error += yaw_weight * abs(dyaw)
+    return error
+
+
+class DamageDetector:
+    """Compares predicted and observed generic rewards, one outcome at a time."""
+
+    def __init__(self, config=None):
+        self.config = config or DetectorConfig()
+        self._errors = deque(maxlen=self.config.window)
+        self._since_fire = None  # outcomes seen since the last detection (None: never fired)
+        self.detections = 0
+
+    def observe(self, predicted_gr, observed_gr):
+        """Judge one outcome; returns a :class:`Verdict` (``fire`` means: adapt now)."""
+        for name, value in (('predicted', predicted_gr), ('observed', observed_gr)):
+            if any(not math.isfinite(float(v)) for v in value):
+                raise ValueError(f'{name} generic reward has a non-finite value: {value}')
+        error = prediction_error(predicted_gr, observed_gr, self.config.yaw_weight)
+        self._errors.append(error)
+        mean_error = sum(self._errors) / len(self._errors)
+        if self._since_fire is not None:
+            self._since_fire += 1
+        cooling = self._since_fire is not None and self._since_fire <= self.config.cooldown
+        fire = (len(self._errors) == self.config.window and mean_error > self.config.threshold
+                and not cooling)
+        if fire:
+            self.detections += 1
+            self._since_fire = 0
+            self._errors.clear()
+        return Verdict(error=error, mean_error=mean_error, fire=fire)
+
+    def reset(self):
+        self._errors.clear()
+        self._since_fire = None

@@ -1,0 +1,142 @@
+"""The ``damage_detector`` node: compares each outcome with the prediction that preceded it.
+
+Pairs ``/sela/prediction`` and ``/hexapod/behavior_outcome`` by command id, judges the error
+with :class:`sela_ros.damage_detection.DamageDetector` and publishes one verdict per outcome
+on ``/diagnostics`` (name ``damage_detector: prediction error``; level ERROR when damage is
+detected). When it detects damage it first calls ``/sela_adapter/adapt`` and publishes the
+verdict once the adapter has answered, so that the adapter's next choice already knows.
+"""
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from sela_ros import conversions as conv
+from sela_ros.damage_detection import DamageDetector, DetectorConfig
+from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
+
+STATUS_NAME = 'damage_detector: prediction error'
+ADAPT_TIMEOUT = 5.0
+
+
+class DamageDetectorNode(Node):
+    def __init__(self):
+        super().__init__('damage_detector')
+        defaults = DetectorConfig()
+        self.declare_parameter('detection.threshold', defaults.threshold)
+        self.declare_parameter('detection.yaw_weight', defaults.yaw_weight)
+        self.declare_parameter('detection.window', defaults.window)
+        self.declare_parameter('detection.cooldown', defaults.cooldown)
+        self.detector = DamageDetector(self._config_from({}))
+        self.predictions = {}
+        self.waiting = []  # verdicts waiting for the adapter's answer: (future, deadline, msg)
+        self.wall = Clock(clock_type=ClockType.STEADY_TIME)
+
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
+        self.create_subscription(Float64MultiArray, '/sela/prediction', self.prediction_callback,
+                                 COMMAND_QOS)
+        self.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
+                                 self.outcome_callback, OUTCOME_QOS)
+        self.adapt_client = self.create_client(Trigger, '/sela_adapter/adapt')
+        self.add_on_set_parameters_callback(self.parameters_callback)
+        self.create_timer(0.01, self.flush_verdicts, clock=self.wall)
+        self.get_logger().info(f'threshold {self.detector.config.threshold} m')
+
+    def _config_from(self, overrides):
+        values = {name: self.get_parameter(f'detection.{name}').value
+                  for name in ('threshold', 'yaw_weight', 'window', 'cooldown')}
+        values.update(overrides)
+        return DetectorConfig(**values)
+
+    def parameters_callback(self, params):
+        overrides = {p.name.split('.', 1)[1]: p.value for p in params
+                     if p.name.startswith('detection.')}
+        if overrides:
+            try:
+                config = self._config_from(overrides)
+            except (TypeError, ValueError) as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+            self.detector = DamageDetector(config)
+        return SetParametersResult(successful=True)
+
+    def prediction_callback(self, msg):
+        try:
+            behavior_id, gr = conv.prediction_from_msg(msg)
+        except conv.MessageError as exc:
+            self.get_logger().error(f'ignored prediction: {exc}')
+            return
+        self.predictions[behavior_id] = gr
+        while len(self.predictions) > 1000:
+            self.predictions.pop(next(iter(self.predictions)))
+
+    def outcome_callback(self, msg):
+        try:
+            outcome = conv.outcome_from_msg(msg)
+        except conv.MessageError as exc:
+            self.get_logger().error(f'ignored outcome: {exc}')
+            return
+        predicted = self.predictions.pop(outcome.behavior_id, None)
+        if predicted is None:
+            return  # no prediction: a command from someone else, nothing to compare with
+        verdict = self.detector.observe(predicted, outcome.generic_reward)
+        level = DiagnosticStatus.ERROR if verdict.fire else DiagnosticStatus.OK
+        status = DiagnosticStatus(
+            level=level, name=STATUS_NAME, hardware_id='hexapod',
+            message='damage detected: adaptation requested' if verdict.fire
+            else 'outcome as predicted' if verdict.error <= self.detector.config.threshold
+            else 'outcome off prediction')
+        status.values = [KeyValue(key='behavior_id', value=str(outcome.behavior_id)),
+                         KeyValue(key='error', value=f'{verdict.error:.6f}'),
+                         KeyValue(key='mean_error', value=f'{verdict.mean_error:.6f}'),
+                         KeyValue(key='threshold', value=str(self.detector.config.threshold)),
+                         KeyValue(key='detections', value=str(self.detector.detections))]
+        out = DiagnosticArray()
+        out.header.stamp = self.get_clock().now().to_msg()
+        out.status = [status]
+        if not verdict.fire:
+            self.diag_pub.publish(out)
+            return
+        self.get_logger().warn(f'damage detected on behaviour {outcome.behavior_id}: error '
+                               f'{verdict.error:.3f} m > {self.detector.config.threshold} m')
+        future = None
+        if self.adapt_client.service_is_ready():
+            future = self.adapt_client.call_async(Trigger.Request())
+        else:
+            self.get_logger().error('/sela_adapter/adapt is not available')
+        deadline = self.wall.now().nanoseconds * 1e-9 + ADAPT_TIMEOUT
+        self.waiting.append((future, deadline, out))
+
+    def flush_verdicts(self):
+        now = self.wall.now().nanoseconds * 1e-9
+        still = []
+        for future, deadline, msg in self.waiting:
+            if future is not None and not future.done() and now < deadline:
+                still.append((future, deadline, msg))
+                continue
+            answer = future.result() if future is not None and future.done() else None
+            msg.status[0].values.append(KeyValue(
+                key='adapt', value=answer.message if answer else 'no answer from the adapter'))
+            self.diag_pub.publish(msg)
+        self.waiting = still
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = DamageDetectorNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

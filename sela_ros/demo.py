@@ -1,0 +1,247 @@
+"""``sela-demo`` (``make demo``): the whole mission over DDS, on this machine, no ROS install.
+
+Starts the four nodes as separate processes with the package's executables (found as
+``ros2 run sela_ros <node>`` finds them) and ``config/sela.yaml``, sends the goal on
+``/goal_pose``, prints one line per step, records the mission's topics to MCAP, and ends
+with a summary (JSON), a trajectory plot (PNG) and exit code 0 when the goal is reached.
+"""
+import argparse
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+NODES = ('sim_bridge', 'planner', 'damage_detector', 'sela_adapter')
+
+
+def parse_goal(text):
+    try:
+        x, y = (float(v) for v in text.split(','))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"goal must be 'X,Y' in metres, got {text!r}") from exc
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise argparse.ArgumentTypeError(f'goal must be finite, got {text!r}')
+    return x, y
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog='sela-demo', description='The damaged hexapod learns to walk to its goal while '
+        'walking there: four ROS 2 nodes over DDS (loopback only).')
+    parser.add_argument('--damage', default='remove:middle_right',
+                        help="damage spec, e.g. 'remove:middle_right' (default), "
+                        "'shorten:front_left:0.5', 'block:rear_right.knee', 'intact'")
+    parser.add_argument('--goal', type=parse_goal, default=(2.0, 2.0), metavar='X,Y',
+                        help='goal in the odom frame, metres (default: 2,2)')
+    parser.add_argument('--seed', type=int, default=0, help='observation-noise seed')
+    parser.add_argument('--gui', action='store_true', help="show PyBullet's window")
+    parser.add_argument('--params-file', default=None,
+                        help='parameter YAML (default: the installed config/sela.yaml)')
+    parser.add_argument('--archive', default='', help='archive file (default: shipped one)')
+    parser.add_argument('--out', default='out/demo', help='output folder (default: %(default)s)')
+    parser.add_argument('--timeout', type=float, default=600.0,
+                        help='wall-clock seconds before giving up (default: %(default)s)')
+    parser.add_argument('--domain-id', type=int, default=None,
+                        help='ROS_DOMAIN_ID (default: inherited, else 0)')
+    parser.add_argument('--quiet-nodes', action='store_true',
+                        help="send the nodes' own logs to files in --out only")
+    return parser
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    from sim_bridge.damage import DamageSpecError, parse_damage
+
+    try:
+        damage = parse_damage(args.damage).canonical()
+    except DamageSpecError as exc:
+        build_parser().error(str(exc))
+    from sela_ros.ros_env import ensure_ros_environment, executable, package_prefix, \
+        ros_environment
+
+    if args.domain_id is not None:
+        os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
+    ensure_ros_environment()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    params_file = args.params_file or str(package_prefix() / 'share' / 'sela_ros' / 'config'
+                                          / 'sela.yaml')
+    env = ros_environment()
+    procs = {}
+    logs = {}
+    try:
+        for name in NODES:
+            cmd = [str(executable(name)), '--ros-args', '--params-file', params_file]
+            if name == 'sim_bridge':
+                cmd += ['-p', f'damage:={damage}', '-p', f'seed:={args.seed}',
+                        '-p', f'sim.gui:={str(args.gui).lower()}']
+            if name == 'sela_adapter' and args.archive:
+                cmd += ['-p', f'archive:={args.archive}']
+            logs[name] = open(out / f'{name}.log', 'w')  # noqa: SIM115
+            procs[name] = subprocess.Popen(
+                cmd, env=env, stdout=logs[name] if args.quiet_nodes else None,
+                stderr=subprocess.STDOUT if args.quiet_nodes else None)
+        print(f"sela-demo: damage '{damage}', goal ({args.goal[0]}, {args.goal[1]}), seed "
+              f"{args.seed}, ROS_DOMAIN_ID={env.get('ROS_DOMAIN_ID', '0')}, nodes: "
+              + ', '.join(f'{n}[{p.pid}]' for n, p in procs.items()), flush=True)
+        summary = run_client(args, damage, out, procs)
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + 10
+        for proc in procs.values():
+            try:
+                proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        for handle in logs.values():
+            handle.close()
+    return 0 if summary.get('success') else 1
+
+
+def run_client(args, damage, out, procs):
+    """The user's side of the mission: send the goal, follow the steps, record, summarise."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import PointStamped, PoseStamped
+    from nav_msgs.msg import OccupancyGrid, Odometry, Path
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64, Float64MultiArray
+
+    from sela_ros import conversions as conv
+    from sela_ros.adapter_node import MISSION_STATUS
+    from sela_ros.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
+    from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+    from sela_ros.recording import McapRecorder
+
+    topics = {'/clock': Clock, '/hexapod/odom': Odometry, '/hexapod/joint_states': JointState,
+              '/hexapod/behavior': Float64MultiArray,
+              '/hexapod/behavior_outcome': Float64MultiArray,
+              '/sela/prediction': Float64MultiArray, '/sela/reward': Float64,
+              '/sela/target': PointStamped, '/goal_pose': PoseStamped, '/planner/path': Path,
+              '/planner/map': OccupancyGrid, '/diagnostics': DiagnosticArray}
+    qos = {'/goal_pose': LATCHED_QOS, '/planner/path': LATCHED_QOS, '/planner/map': LATCHED_QOS,
+           '/sela/target': LATCHED_QOS, '/hexapod/behavior_outcome': OUTCOME_QOS,
+           '/hexapod/behavior': COMMAND_QOS, '/sela/prediction': COMMAND_QOS,
+           '/sela/reward': COMMAND_QOS}
+    rclpy.init()
+    node = Node('sela_demo')
+    steps, trajectory, detections = [], [], []
+    state = {'done': None, 'final': None}
+
+    def on_diag(msg):
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            if status.name == MISSION_STATUS and 'step' in values:
+                steps.append(values)
+                pose = [float(v) for v in values['pose'].split()]
+                wp = [float(v) for v in values['waypoint'].split()]
+                pred = [float(v) for v in values['predicted_gr'].split()]
+                obs = [float(v) for v in values['observed_gr'].split()]
+                print(f"step {int(values['step']):3d}  pose ({pose[0]:+.2f}, {pose[1]:+.2f}, "
+                      f"{math.degrees(pose[2]):+6.1f} deg)  waypoint ({wp[0]:+.2f}, {wp[1]:+.2f})"
+                      f"  predicted ({pred[0]:+.3f}, {pred[1]:+.3f}, {pred[2]:+.2f})"
+                      f"  observed ({obs[0]:+.3f}, {obs[1]:+.3f}, {obs[2]:+.2f})"
+                      f"  reward {float(values['reward']):+.3f}  "
+                      f"{'ADAPTING' if values['adapting'] == 'True' else 'trusting map'}",
+                      flush=True)
+            elif status.name == MISSION_STATUS and 'success' in values:
+                state['done'] = values['success'] == 'True'
+                state['final'] = values
+            elif status.name == DETECTOR_STATUS and status.level == 2:
+                detections.append(values)
+                print(f"        damage detector: error {float(values['error']):.3f} m > "
+                      f"{values['threshold']} m -> {values.get('adapt', 'adapt')}", flush=True)
+
+    def on_odom(msg):
+        pose = conv.pose_from_odometry(msg)
+        trajectory.append([conv.time_from_msg(msg.header.stamp), *pose.tolist()])
+
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, STATE_QOS)
+    node.create_subscription(Odometry, '/hexapod/odom', on_odom, STATE_QOS)
+    recorder = McapRecorder(node, str(out / 'mission.mcap'), topics,
+                            qos_for=lambda t: qos.get(t, STATE_QOS))
+    goal_pub = node.create_publisher(PoseStamped, '/goal_pose', LATCHED_QOS)
+    start = time.monotonic()
+    try:
+        # The goal is latched: the planner and the adapter get it whenever they come up.
+        goal_pub.publish(conv.pose_stamped(args.goal, frame_id='odom'))
+        while state['done'] is None and time.monotonic() - start < args.timeout:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            dead = [n for n, p in procs.items() if p.poll() is not None]
+            if dead:
+                print(f'sela-demo: node(s) {dead} exited; see their logs', file=sys.stderr)
+                break
+        for _ in range(5):
+            rclpy.spin_once(node, timeout_sec=0.05)
+    finally:
+        recorder.close()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    wall = time.monotonic() - start
+    final_true = trajectory[-1][1:3] if trajectory else None
+    summary = {
+        'success': bool(state['done']), 'damage': damage, 'goal': list(args.goal),
+        'seed': args.seed, 'steps': len(steps),
+        'adaptations': int(state['final']['adaptations']) if state['final'] else None,
+        'learning_started_at_step': next((int(s['step']) for s in steps
+                                          if s['adapting'] == 'True'), None),
+        'detections': len(detections),
+        'final_true_position': final_true,
+        'final_distance_to_goal': (math.dist(final_true, args.goal) if final_true else None),
+        'wall_time_s': round(wall, 2),
+        'behaviors': [int(s['behavior_index']) for s in steps],
+        'steps_detail': steps, 'recording': str(out / 'mission.mcap'),
+        'recorded_messages': recorder.counts,
+    }
+    with open(out / 'summary.json', 'w') as handle:
+        json.dump(summary, handle, indent=1)
+    plot_trajectory(out / 'trajectory.png', trajectory, steps, args.goal, damage)
+    verdict = 'goal reached' if summary['success'] else 'goal NOT reached'
+    print(f"sela-demo: {verdict} in {summary['steps']} steps "
+          f"(adaptation from step {summary['learning_started_at_step']}, "
+          f"{summary['detections']} detection(s)), final distance "
+          f"{summary['final_distance_to_goal']} m, {wall:.1f} s wall; "
+          f"wrote {out}/summary.json, trajectory.png, mission.mcap", flush=True)
+    return summary
+
+
+def plot_trajectory(path, trajectory, steps, goal, damage):
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 6))
+    if trajectory:
+        xy = [(t[1], t[2]) for t in trajectory]
+        ax.plot(*zip(*xy), color='tab:blue', lw=1.2, label='robot (odom)')
+    for s in steps:
+        p = [float(v) for v in s['pose'].split()]
+        w = [float(v) for v in s['waypoint'].split()]
+        ax.plot([p[0], w[0]], [p[1], w[1]], color='tab:orange', lw=0.6, alpha=0.6)
+        ax.plot(*p[:2], 'o', ms=3, color='tab:red' if s['adapting'] == 'True' else 'tab:gray')
+    ax.add_patch(plt.Circle(goal, 0.1, color='tab:green', alpha=0.4, label='goal (0.1 m)'))
+    ax.plot(0, 0, 'ks', label='start')
+    ax.set_aspect('equal')
+    ax.set_xlabel('x (m)')
+    ax.set_ylabel('y (m)')
+    ax.set_title(f'SELA mission, damage {damage}: {len(steps)} steps\n'
+                 'grey dots: trusting the map, red: adapting; orange: step -> waypoint')
+    ax.legend(loc='lower right', fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

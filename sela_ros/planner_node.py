@@ -1,0 +1,210 @@
+"""The ``planner`` node: A* over an occupancy grid, the reward selection layer of SELA.
+
+Serves ``/planner/make_plan`` (nav_msgs/GetPlan); after each plan it publishes the path on
+``/planner/path`` and the waypoint the specialised reward is built on, ``planner.lookahead``
+metres along the path, on ``/sela/target`` (its header stamp is the stamp of the request's
+start pose, so the requester can pair them). The map is published once, latched, on
+``/planner/map``. A goal on ``/goal_pose`` is checked against the map and planned from the
+latest odometry, so a bad goal is reported as soon as it is sent.
+"""
+import math
+
+import numpy as np
+import rclpy
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PointStamped, PoseStamped
+from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from nav_msgs.msg import Odometry, Path
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from sela_ros import conversions as conv
+from sela_ros.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
+from sela_ros.qos import LATCHED_QOS, STATE_QOS
+
+
+def grid_from_description(resolution, origin, width, height, obstacles):
+    """Build an :class:`OccupancyGrid` from the planner's map parameters.
+
+    ``obstacles`` is a flat list ``[xmin, ymin, xmax, ymax, ...]`` of rectangles in metres.
+    """
+    origin = [float(v) for v in origin]
+    if len(origin) != 2:
+        raise ValueError(f'map.origin must be [x, y], got {origin}')
+    for name, value in (('map.resolution', resolution), ('map.width', width),
+                        ('map.height', height)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ValueError(f'{name} must be a number > 0, got {value!r}')
+    obstacles = [float(v) for v in obstacles]
+    if len(obstacles) % 4:
+        raise ValueError('map.obstacles must be a flat list of rectangles '
+                         f'[xmin, ymin, xmax, ymax, ...]; got {len(obstacles)} numbers')
+    grid = OccupancyGrid.empty(origin[0], origin[0] + width, origin[1], origin[1] + height,
+                               resolution)
+    occupied = grid.occupied.copy()
+    ys = grid.origin[1] + (np.arange(grid.height) + 0.5) * grid.resolution
+    xs = grid.origin[0] + (np.arange(grid.width) + 0.5) * grid.resolution
+    for xmin, ymin, xmax, ymax in np.reshape(obstacles, (-1, 4)):
+        if not (xmax > xmin and ymax > ymin):
+            raise ValueError(f'obstacle [{xmin}, {ymin}, {xmax}, {ymax}] is empty: '
+                             'expected xmin < xmax and ymin < ymax')
+        occupied[np.ix_((ys >= ymin) & (ys <= ymax), (xs >= xmin) & (xs <= xmax))] = True
+    return OccupancyGrid(occupied, grid.resolution, grid.origin)
+
+
+def load_map_file(path):
+    """Read a map YAML: keys resolution, origin, width, height, obstacles (as the params)."""
+    try:
+        with open(path) as handle:
+            data = yaml.safe_load(handle)
+    except OSError as exc:
+        raise ValueError(f'map file {path}: {exc.strerror}') from exc
+    except yaml.YAMLError as exc:
+        raise ValueError(f'map file {path} is not valid YAML: {exc}') from exc
+    if not isinstance(data, dict):
+        raise ValueError(f'map file {path}: expected a mapping with resolution, origin, '
+                         'width, height, obstacles')
+    missing = {'resolution', 'origin', 'width', 'height'} - set(data)
+    if missing:
+        raise ValueError(f'map file {path}: missing key(s) {sorted(missing)}')
+    return grid_from_description(data['resolution'], data['origin'], data['width'],
+                                 data['height'], data.get('obstacles', []))
+
+
+class PlannerNode(Node):
+    def __init__(self):
+        super().__init__('planner')
+        self.declare_parameter('map.resolution', 0.05)
+        self.declare_parameter('map.origin', [-1.0, -1.0])
+        self.declare_parameter('map.width', 4.0)
+        self.declare_parameter('map.height', 4.0)
+        # A typed empty default: ROS cannot infer the type of [], so declare DOUBLE_ARRAY.
+        self.declare_parameter('map.obstacles', Parameter.Type.DOUBLE_ARRAY)
+        self.declare_parameter('map.file', '')
+        self.declare_parameter('planner.lookahead', 0.5)
+        self.declare_parameter('frame_id', 'odom')
+
+        self.frame_id = self.get_parameter('frame_id').value
+        self.lookahead = float(self.get_parameter('planner.lookahead').value)
+        self.grid = self._load_grid()
+        self.planner = GridPlanner(self.grid)
+        self.pose = None
+        self.goal = None
+
+        self.map_pub = self.create_publisher(OccupancyGridMsg, '/planner/map', LATCHED_QOS)
+        self.path_pub = self.create_publisher(Path, '/planner/path', LATCHED_QOS)
+        self.target_pub = self.create_publisher(PointStamped, '/sela/target', LATCHED_QOS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
+        self.create_subscription(Odometry, '/hexapod/odom', self.odom_callback, STATE_QOS)
+        self.create_subscription(PoseStamped, '/goal_pose', self.goal_callback, LATCHED_QOS)
+        self.create_service(GetPlan, '/planner/make_plan', self.make_plan_callback)
+        self.add_on_set_parameters_callback(self.parameters_callback)
+        self.map_pub.publish(conv.occupancy_grid_to_msg(
+            self.grid.occupied, self.grid.resolution, self.grid.origin, frame_id=self.frame_id))
+        self.get_logger().info(f'map {self.grid.width}x{self.grid.height} cells of '
+                               f'{self.grid.resolution} m, bounds {self.grid.bounds_text()}, '
+                               f'lookahead {self.lookahead} m')
+
+    def _load_grid(self):
+        path = self.get_parameter('map.file').value
+        if path:
+            return load_map_file(path)
+        return grid_from_description(
+            self.get_parameter('map.resolution').value, self.get_parameter('map.origin').value,
+            self.get_parameter('map.width').value, self.get_parameter('map.height').value,
+            self.get_parameter('map.obstacles').value)
+
+    def parameters_callback(self, params):
+        for param in params:
+            if param.name == 'planner.lookahead':
+                if not (isinstance(param.value, (int, float)) and math.isfinite(param.value)
+                        and param.value > 0):
+                    return SetParametersResult(successful=False,
+                                               reason='planner.lookahead must be > 0 (m)')
+                self.lookahead = float(param.value)
+            elif param.name.startswith('map.'):
+                return SetParametersResult(successful=False,
+                                           reason=f'{param.name} can only be set at start-up')
+        return SetParametersResult(successful=True)
+
+    def odom_callback(self, msg):
+        try:
+            self.pose = conv.pose_from_odometry(msg)
+        except conv.MessageError as exc:
+            self.get_logger().error(f'ignored odometry: {exc}')
+
+    def goal_callback(self, msg):
+        try:
+            goal = conv.goal_from_pose_stamped(msg, self.frame_id)
+            if not self.grid.in_map(goal):
+                raise PlanningError(f'goal ({goal[0]:.2f}, {goal[1]:.2f}) is off the map '
+                                    f'{self.grid.bounds_text()}')
+            if not self.grid.is_free(self.grid.world_to_cell(goal)):
+                raise PlanningError(f'goal ({goal[0]:.2f}, {goal[1]:.2f}) is inside an '
+                                    'obstacle')
+        except (conv.MessageError, PlanningError) as exc:
+            self._report(DiagnosticStatus.ERROR, f'goal rejected: {exc}')
+            return
+        self.goal = goal
+        self.get_logger().info(f'goal ({goal[0]:.2f}, {goal[1]:.2f})')
+        if self.pose is not None:
+            self._plan(self.pose[:2], goal, msg.header.stamp)
+
+    def make_plan_callback(self, request, response):
+        try:
+            start = conv.goal_from_pose_stamped(request.start, self.frame_id)
+            if (request.goal.header.frame_id == '' and request.goal.pose.position.x == 0.0
+                    and request.goal.pose.position.y == 0.0 and self.goal is not None):
+                goal = self.goal  # an empty goal means: the current /goal_pose
+            else:
+                goal = conv.goal_from_pose_stamped(request.goal, self.frame_id)
+            path = self._plan(start, goal, request.start.header.stamp)
+        except (conv.MessageError, PlanningError, ValueError) as exc:
+            self._report(DiagnosticStatus.ERROR, f'make_plan failed: {exc}')
+            response.plan = Path()
+            response.plan.header.frame_id = self.frame_id
+            return response
+        response.plan = path
+        return response
+
+    def _plan(self, start, goal, stamp):
+        path_xy = self.planner(start, goal)
+        waypoint = next_waypoint(path_xy, start, self.lookahead)
+        path = conv.path_to_msg(path_xy, stamp=stamp, frame_id=self.frame_id)
+        self.path_pub.publish(path)
+        self.target_pub.publish(conv.point_stamped(waypoint, stamp=stamp,
+                                                   frame_id=self.frame_id))
+        return path
+
+    def _report(self, level, message):
+        self.get_logger().error(message) if level >= DiagnosticStatus.ERROR else \
+            self.get_logger().info(message)
+        status = DiagnosticStatus(level=level, name='planner', message=message,
+                                  hardware_id='sela_ros')
+        status.values = [KeyValue(key='bounds', value=self.grid.bounds_text())]
+        msg = DiagnosticArray()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.status = [status]
+        self.diag_pub.publish(msg)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = PlannerNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

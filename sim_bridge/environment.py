@@ -1,0 +1,98 @@
+"""The hexapod as the learner sees it: noisy position observations and observed outcomes.
+
+ROS-free. The sim_bridge node and the in-process experiments both drive the robot through
+:class:`ObservedHexapod`, so that the same seed gives the same observations, and therefore
+the same decisions, over DDS and in process.
+
+Observation model (the paper's): the robot's (x, y) is observed with Gaussian noise of
+standard deviation ``noise_std`` once after every gait (and once after a reset); the heading
+is observed exactly. The observed generic reward of a gait is computed (``afun``) from the
+observations before and after it: the displacement rotated into the frame of the observed
+start pose, and the heading change wrapped to (-pi, pi].
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def wrap_angle(angle):
+    """Wrap to (-pi, pi]."""
+    wrapped = math.remainder(float(angle), 2.0 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped
+
+
+def generic_reward_from_poses(start_pose, end_pose):
+    """afun: (dx, dy, dyaw) of ``end_pose`` in the frame of ``start_pose`` (x, y, yaw)."""
+    x0, y0, yaw0 = (float(v) for v in start_pose)
+    x1, y1, yaw1 = (float(v) for v in end_pose)
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    wx, wy = x1 - x0, y1 - y0
+    return np.array([c * wx + s * wy, -s * wx + c * wy, wrap_angle(yaw1 - yaw0)])
+
+
+@dataclass
+class Execution:
+    """One executed gait: what was observed and what really happened."""
+
+    observed_generic_reward: np.ndarray
+    observed_start: np.ndarray
+    observed_end: np.ndarray
+    true_start: np.ndarray
+    true_end: np.ndarray
+    fallen: bool
+    sim_time: float
+    duty_factors: np.ndarray
+
+
+class ObservedHexapod:
+    """A :class:`sim_bridge.hexapod.Hexapod` behind the paper's noisy observation model.
+
+    Args:
+        robot: the simulated hexapod (owns physics, damage and sim time).
+        noise_std: standard deviation (m) of the Gaussian noise on observed positions.
+        seed: seed of the observation noise generator.
+    """
+
+    def __init__(self, robot, noise_std=0.0, seed=0):
+        noise_std = float(noise_std)
+        if not (math.isfinite(noise_std) and noise_std >= 0.0):
+            raise ValueError(f'noise_std must be a finite number >= 0, got {noise_std}')
+        self.robot = robot
+        self.noise_std = noise_std
+        self.rng = np.random.default_rng(seed)
+        self._observed = self._observe(self.robot.pose())
+
+    def _observe(self, true_pose):
+        pose = np.array(true_pose, dtype=float)
+        if self.noise_std > 0.0:
+            pose[:2] += self.rng.normal(0.0, self.noise_std, size=2)
+        return pose
+
+    def reset(self):
+        self.robot.reset()
+        self._observed = self._observe(self.robot.pose())
+
+    def observed_pose(self):
+        return self._observed.copy()
+
+    def true_pose(self):
+        return np.asarray(self.robot.pose(), dtype=float)
+
+    def execute(self, params, callback=None, callback_period=None):
+        kwargs = {}
+        if callback is not None:
+            kwargs = {'callback': callback}
+            if callback_period is not None:
+                kwargs['callback_period'] = callback_period
+        outcome = self.robot.execute(np.asarray(params, dtype=float), **kwargs)
+        observed_start = self._observed
+        observed_end = self._observe(outcome.end_pose)
+        self._observed = observed_end
+        return Execution(
+            observed_generic_reward=generic_reward_from_poses(observed_start, observed_end),
+            observed_start=observed_start.copy(), observed_end=observed_end.copy(),
+            true_start=np.asarray(outcome.start_pose, float),
+            true_end=np.asarray(outcome.end_pose, float), fallen=bool(outcome.fallen),
+            sim_time=float(outcome.sim_time),
+            duty_factors=np.asarray(outcome.duty_factors, float))

@@ -1,0 +1,224 @@
+"""The ``sim_bridge`` node: the PyBullet hexapod on the ROS graph.
+
+Publishes ``/clock`` (it owns sim time), ``/hexapod/odom`` (odom -> base_link),
+``/hexapod/joint_states``; executes each command on ``/hexapod/behavior`` and answers with
+exactly one ``/hexapod/behavior_outcome`` carrying the command's id; serves
+``/sim_bridge/reset``. ``damage`` can be changed at run time with ``ros2 param set``.
+
+Gaits run on a worker thread, so services, parameters and subscriptions keep answering
+while the robot walks.
+"""
+import queue
+import threading
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from sela_ros import conversions as conv
+from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
+from sim_bridge.damage import DamageSpecError, parse_damage
+from sim_bridge.environment import ObservedHexapod
+from sim_bridge.hexapod import Hexapod
+
+
+
+class SimBridge(Node):
+    def __init__(self):
+        super().__init__('sim_bridge')
+        self.declare_parameter('damage', 'remove:middle_right')
+        self.declare_parameter('sim.dt', 1.0 / 240.0)
+        self.declare_parameter('sim.gait_duration', 3.0)
+        self.declare_parameter('sim.gui', False)
+        self.declare_parameter('publish_period', 0.05)
+        self.declare_parameter('observation.noise_std', 0.01)
+        self.declare_parameter('seed', 0)
+        self.declare_parameter('reset_on_fall', True)
+
+        damage = self.get_parameter('damage').value
+        try:
+            parse_damage(damage)
+        except DamageSpecError as exc:
+            self.get_logger().error(f'parameter damage: {exc}; starting intact')
+            damage = 'intact'
+        robot = Hexapod(dt=self.get_parameter('sim.dt').value,
+                        gait_duration=self.get_parameter('sim.gait_duration').value,
+                        damage=damage, gui=self.get_parameter('sim.gui').value)
+        self.env = ObservedHexapod(robot, self.get_parameter('observation.noise_std').value,
+                                   seed=self.get_parameter('seed').value)
+        self.publish_period = float(self.get_parameter('publish_period').value)
+        self.reset_on_fall = bool(self.get_parameter('reset_on_fall').value)
+
+        self._sim_lock = threading.Lock()
+        self._work = queue.Queue()
+        self._next_auto_id = 1_000_000_000  # ids for commands sent without one
+        self._commands_done = 0
+
+        self.clock_pub = self.create_publisher(Clock, '/clock', STATE_QOS)
+        self.odom_pub = self.create_publisher(conv.Odometry, '/hexapod/odom', STATE_QOS)
+        self.joint_pub = self.create_publisher(JointState, '/hexapod/joint_states', STATE_QOS)
+        self.outcome_pub = self.create_publisher(Float64MultiArray, '/hexapod/behavior_outcome',
+                                                 OUTCOME_QOS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
+        self.create_subscription(Float64MultiArray, '/hexapod/behavior', self.behavior_callback,
+                                 COMMAND_QOS, callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_service(Trigger, '/sim_bridge/reset', self.reset_callback,
+                            callback_group=ReentrantCallbackGroup())
+        self.add_on_set_parameters_callback(self.parameters_callback)
+
+        self._stop = threading.Event()
+        self._worker = threading.Thread(target=self._work_loop, name='gait_worker', daemon=True)
+        self._worker.start()
+        self._publish_state(self.env.robot.sim_time)
+        self.get_logger().info(f"hexapod ready, damage '{damage}', "
+                               f'noise std {self.env.noise_std} m')
+
+    # --- callbacks (short: they only validate and enqueue) -------------------------------
+
+    def behavior_callback(self, msg):
+        try:
+            params, behavior_id = conv.behavior_from_msg(msg)
+        except conv.MessageError as exc:
+            self.get_logger().error(f'rejected command on /hexapod/behavior: {exc}')
+            return
+        if behavior_id is None:
+            behavior_id = self._next_auto_id
+            self._next_auto_id += 1
+        self._work.put(('gait', behavior_id, params))
+
+    def reset_callback(self, request, response):
+        done = threading.Event()
+        self._work.put(('reset', done, None))
+        if not done.wait(timeout=30.0):
+            response.success = False
+            response.message = 'reset timed out: the simulator is busy'
+            return response
+        response.success = True
+        response.message = f'robot back at the start, sim time {self.env.robot.sim_time:.3f} s'
+        return response
+
+    def parameters_callback(self, params):
+        for param in params:
+            if param.name == 'damage':
+                try:
+                    spec = parse_damage(param.value if isinstance(param.value, str) else '')
+                    if not isinstance(param.value, str):
+                        raise DamageSpecError(f'damage must be a string, got {param.value!r}')
+                except DamageSpecError as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
+                self._work.put(('damage', spec.canonical(), None))
+            elif param.name in ('sim.dt', 'sim.gait_duration', 'sim.gui', 'seed'):
+                return SetParametersResult(
+                    successful=False, reason=f'{param.name} can only be set at start-up')
+            elif param.name == 'observation.noise_std':
+                value = param.value
+                if not isinstance(value, (int, float)) or not value >= 0.0:
+                    return SetParametersResult(
+                        successful=False, reason='observation.noise_std must be a number >= 0')
+                self._work.put(('noise', float(value), None))
+            elif param.name == 'publish_period':
+                if not isinstance(param.value, (int, float)) or not param.value > 0.0:
+                    return SetParametersResult(successful=False,
+                                               reason='publish_period must be > 0')
+                self.publish_period = float(param.value)
+        return SetParametersResult(successful=True)
+
+    # --- worker thread -------------------------------------------------------------------
+
+    def _work_loop(self):
+        while not self._stop.is_set():
+            try:
+                kind, a, b = self._work.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            try:
+                with self._sim_lock:
+                    if kind == 'gait':
+                        self._run_gait(a, b)
+                    elif kind == 'reset':
+                        self.env.reset()
+                        self._publish_state(self.env.robot.sim_time)
+                        a.set()
+                    elif kind == 'damage':
+                        self.env.robot.set_damage(a)
+                        self._publish_state(self.env.robot.sim_time)
+                        self.get_logger().warn(f"damage is now '{a}'")
+                    elif kind == 'noise':
+                        self.env.noise_std = a
+            except Exception as exc:  # keep the bridge alive whatever one command does
+                self.get_logger().error(f'{kind} failed: {type(exc).__name__}: {exc}')
+
+    def _run_gait(self, behavior_id, params):
+        def on_step(sim_time, pose, positions, velocities):
+            self._publish_state(sim_time, pose, positions, velocities)
+
+        result = self.env.execute(params, callback=on_step, callback_period=self.publish_period)
+        outcome = conv.BehaviorOutcome(
+            behavior_id=behavior_id, generic_reward=result.observed_generic_reward,
+            start_pose=result.observed_start, end_pose=result.observed_end,
+            fallen=result.fallen, sim_time=result.sim_time, duty_factors=result.duty_factors)
+        self._commands_done += 1
+        if result.fallen:
+            self._report_fall(behavior_id)
+        self._publish_state(self.env.robot.sim_time)
+        self.outcome_pub.publish(conv.outcome_to_msg(outcome))
+
+    def _report_fall(self, behavior_id):
+        status = DiagnosticStatus(level=DiagnosticStatus.ERROR, name='sim_bridge: robot',
+                                  message='robot fell or flipped',
+                                  hardware_id='hexapod')
+        status.values = [KeyValue(key='behavior_id', value=str(behavior_id))]
+        if self.reset_on_fall:
+            self.env.robot.set_damage(self.env.robot.damage)  # rebuild upright where it lies
+            status.values.append(KeyValue(key='action', value='righted in place'))
+        msg = DiagnosticArray()
+        msg.header.stamp = conv.time_to_msg(self.env.robot.sim_time)
+        msg.status = [status]
+        self.diag_pub.publish(msg)
+        self.get_logger().error(f'robot fell during behavior {behavior_id}')
+
+    def _publish_state(self, sim_time, pose=None, positions=None, velocities=None):
+        stamp = conv.time_to_msg(sim_time)
+        self.clock_pub.publish(Clock(clock=stamp))
+        pose = self.env.true_pose() if pose is None else pose
+        odom = conv.odometry_msg(pose, stamp=sim_time)
+        self.odom_pub.publish(odom)
+        if positions is not None:
+            js = JointState()
+            js.header.stamp = stamp
+            js.name = list(self.env.robot.joint_names)
+            js.position = [float(v) for v in positions]
+            js.velocity = [float(v) for v in velocities]
+            self.joint_pub.publish(js)
+
+    def destroy_node(self):
+        self._stop.set()
+        self._worker.join(timeout=5.0)
+        super().destroy_node()
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimBridge()
+        executor = MultiThreadedExecutor(num_threads=4)
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
