@@ -1,0 +1,162 @@
+"""Damage specifications for the hexapod: a small grammar users can type.
+
+Grammar (items joined with ``,``; whitespace ignored; case-insensitive)::
+
+    intact | <empty>                 no damage
+    remove:<leg>                     the leg is gone (links, mass and contacts)
+    shorten:<leg>[:<factor>]         tibia and foot scaled by factor in (0, 1], default 0.5
+    block:<leg>.<joint>[=<angle>]    joint locked at angle (rad, within its limits), default 0
+
+``<leg>`` is one of :data:`LEG_NAMES`, ``<joint>`` one of :data:`JOINT_NAMES`.
+Example: ``remove:middle_right,block:front_left.knee``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+LEG_NAMES = ('front_left', 'middle_left', 'rear_left',
+             'front_right', 'middle_right', 'rear_right')
+JOINT_NAMES = ('hip_yaw', 'hip_pitch', 'knee')
+JOINT_LIMITS = {'hip_yaw': math.pi / 2, 'hip_pitch': math.pi / 4, 'knee': math.pi / 4}
+DEFAULT_SHORTEN_FACTOR = 0.5
+KINDS = ('intact', 'remove', 'shorten', 'block')
+
+
+class DamageSpecError(ValueError):
+    """A damage specification that does not parse; the message lists the valid names."""
+
+
+def _fmt(x: float) -> str:
+    return repr(float(x))
+
+
+@dataclass(frozen=True)
+class DamageSpec:
+    """Parsed damage: removed legs, shortened legs and blocked joints (sorted, hashable).
+
+    Attributes:
+        removed: leg names removed.
+        shortened: ``(leg, factor)`` pairs.
+        blocked: ``(leg, joint, angle)`` triples.
+    """
+
+    removed: tuple[str, ...] = ()
+    shortened: tuple[tuple[str, float], ...] = ()
+    blocked: tuple[tuple[str, str, float], ...] = ()
+
+    @property
+    def is_intact(self) -> bool:
+        return not (self.removed or self.shortened or self.blocked)
+
+    def canonical(self) -> str:
+        """Canonical text form; ``parse_damage(s.canonical()) == s``."""
+        if self.is_intact:
+            return 'intact'
+        items = [f'remove:{leg}' for leg in self.removed]
+        items += [f'shorten:{leg}:{_fmt(f)}' for leg, f in self.shortened]
+        items += [f'block:{leg}.{joint}={_fmt(a)}' for leg, joint, a in self.blocked]
+        return ','.join(items)
+
+    def shorten_factor(self, leg: str) -> float:
+        for name, factor in self.shortened:
+            if name == leg:
+                return factor
+        return 1.0
+
+    def blocked_angle(self, leg: str, joint: str) -> float | None:
+        for name, j, angle in self.blocked:
+            if name == leg and j == joint:
+                return angle
+        return None
+
+    def __str__(self) -> str:
+        return self.canonical()
+
+
+def _leg(name: str, item: str) -> str:
+    if name not in LEG_NAMES:
+        raise DamageSpecError(
+            f'unknown leg {name!r} in damage item {item!r}; valid legs: {", ".join(LEG_NAMES)}')
+    return name
+
+
+def _number(text: str, what: str, item: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise DamageSpecError(f'{what} in damage item {item!r} must be a number, '
+                              f'got {text!r}') from None
+    if not math.isfinite(value):
+        raise DamageSpecError(f'{what} in damage item {item!r} must be finite, got {text!r}')
+    return value
+
+
+def parse_damage(spec) -> DamageSpec:
+    """Parse a damage specification (a string, ``None`` or a :class:`DamageSpec`).
+
+    Raises:
+        DamageSpecError: unknown kind, leg or joint, a bad number, or a contradiction
+            (e.g. the same leg removed and shortened).
+    """
+    if isinstance(spec, DamageSpec):
+        return spec
+    if spec is None:
+        return DamageSpec()
+    if not isinstance(spec, str):
+        raise DamageSpecError(f'damage must be a string such as "remove:middle_right", '
+                              f'got {type(spec).__name__}')
+    removed: set[str] = set()
+    shortened: dict[str, float] = {}
+    blocked: dict[tuple[str, str], float] = {}
+    for raw in spec.replace(' ', '').replace('\t', '').lower().split(','):
+        item = raw
+        if item in ('', 'intact', 'none'):
+            continue
+        kind, _, rest = item.partition(':')
+        if kind == 'remove':
+            leg = _leg(rest, item)
+            removed.add(leg)
+        elif kind == 'shorten':
+            name, _, factor_text = rest.partition(':')
+            leg = _leg(name, item)
+            factor = (DEFAULT_SHORTEN_FACTOR if factor_text == ''
+                      else _number(factor_text, 'shorten factor', item))
+            if not 0.0 < factor <= 1.0:
+                raise DamageSpecError(
+                    f'shorten factor in {item!r} must be in (0, 1], got {factor}')
+            if leg in shortened and shortened[leg] != factor:
+                raise DamageSpecError(f'leg {leg} shortened twice with different factors')
+            shortened[leg] = factor
+        elif kind == 'block':
+            target, _, angle_text = rest.partition('=')
+            name, dot, joint = target.partition('.')
+            leg = _leg(name, item)
+            if not dot or joint not in JOINT_NAMES:
+                raise DamageSpecError(
+                    f'unknown joint {joint!r} in damage item {item!r}; expected '
+                    f'block:<leg>.<joint>[=<angle>] with joint one of {", ".join(JOINT_NAMES)}')
+            angle = 0.0 if angle_text == '' else _number(angle_text, 'block angle', item)
+            limit = JOINT_LIMITS[joint]
+            if abs(angle) > limit + 1e-12:
+                raise DamageSpecError(
+                    f'block angle {angle} for {leg}.{joint} is outside its limits '
+                    f'[-{limit:.4f}, {limit:.4f}] rad')
+            if (leg, joint) in blocked and blocked[(leg, joint)] != angle:
+                raise DamageSpecError(f'joint {leg}.{joint} blocked twice at different angles')
+            blocked[(leg, joint)] = angle
+        else:
+            raise DamageSpecError(
+                f'unknown damage kind {kind!r} in {item!r}; valid kinds: {", ".join(KINDS)} '
+                f'(e.g. remove:middle_right, shorten:front_left:0.5, block:rear_right.knee=0.2)')
+    for leg in removed:
+        if leg in shortened or any(b[0] == leg for b in blocked):
+            raise DamageSpecError(f'leg {leg} is removed; it cannot also be shortened or blocked')
+    order = {name: i for i, name in enumerate(LEG_NAMES)}
+    jorder = {name: i for i, name in enumerate(JOINT_NAMES)}
+    return DamageSpec(
+        removed=tuple(sorted(removed, key=order.__getitem__)),
+        shortened=tuple(sorted(shortened.items(), key=lambda kv: order[kv[0]])),
+        blocked=tuple(sorted(((leg, joint, a) for (leg, joint), a in blocked.items()),
+                             key=lambda b: (order[b[0]], jorder[b[1]]))),
+    )

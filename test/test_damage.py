@@ -1,0 +1,88 @@
+"""Unit and property tests of the damage specification grammar."""
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from sim_bridge.damage import (
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    LEG_NAMES,
+    DamageSpec,
+    DamageSpecError,
+    parse_damage,
+)
+
+
+@pytest.mark.parametrize('text', ['', 'intact', ' INTACT ', None, 'none'])
+def test_intact(text):
+    spec = parse_damage(text)
+    assert spec == DamageSpec() and spec.is_intact and spec.canonical() == 'intact'
+
+
+def test_combination_and_defaults():
+    spec = parse_damage('remove:middle_right, block:front_left.knee,shorten:rear_left')
+    assert spec.removed == ('middle_right',)
+    assert spec.shortened == (('rear_left', 0.5),)
+    assert spec.blocked == (('front_left', 'knee', 0.0),)
+    assert spec.canonical() == ('remove:middle_right,shorten:rear_left:0.5,'
+                                'block:front_left.knee=0.0')
+    assert hash(spec) == hash(parse_damage(spec.canonical()))
+
+
+def test_order_does_not_matter():
+    a = parse_damage('remove:rear_right,remove:front_left,block:middle_left.hip_yaw=0.2')
+    b = parse_damage('block:middle_left.hip_yaw=0.2,remove:front_left,remove:rear_right')
+    assert a == b and a.canonical() == b.canonical()
+
+
+@pytest.mark.parametrize('text, names', [
+    ('remove:middle_rigth', LEG_NAMES),
+    ('shorten:leg7', LEG_NAMES),
+    ('block:front_left.ankle', JOINT_NAMES),
+    ('block:front_left', JOINT_NAMES),
+    ('break:front_left', ('remove', 'shorten', 'block')),
+])
+def test_unknown_names_list_valid_ones(text, names):
+    with pytest.raises(DamageSpecError) as info:
+        parse_damage(text)
+    for name in names:
+        assert name in str(info.value)
+    assert isinstance(info.value, ValueError)
+
+
+@pytest.mark.parametrize('text', [
+    'shorten:front_left:0', 'shorten:front_left:1.5', 'shorten:front_left:x',
+    'block:front_left.knee=1.0', 'block:front_left.knee=nan',
+    'remove:front_left,shorten:front_left', 'remove:rear_left,block:rear_left.knee',
+    'block:front_left.knee=0.1,block:front_left.knee=0.2',
+])
+def test_bad_values(text):
+    with pytest.raises(DamageSpecError):
+        parse_damage(text)
+
+
+def test_not_a_string():
+    with pytest.raises(DamageSpecError, match='string'):
+        parse_damage(3)
+
+
+_legs = st.sampled_from(LEG_NAMES)
+_item = st.one_of(
+    _legs.map(lambda leg: f'remove:{leg}'),
+    st.tuples(_legs, st.floats(0.05, 1.0)).map(lambda t: f'shorten:{t[0]}:{t[1]!r}'),
+    st.tuples(_legs, st.sampled_from(JOINT_NAMES), st.floats(-0.7, 0.7)).map(
+        lambda t: f'block:{t[0]}.{t[1]}={t[2]!r}'),
+)
+
+
+@given(st.lists(_item, max_size=5))
+def test_canonical_round_trip(items):
+    text = ','.join(items)
+    try:
+        spec = parse_damage(text)
+    except DamageSpecError:
+        return  # contradictions (same leg removed and shortened, ...) are rejected
+    again = parse_damage(spec.canonical())
+    assert again == spec and again.canonical() == spec.canonical()
+    for _leg, joint, angle in spec.blocked:
+        assert abs(angle) <= JOINT_LIMITS[joint]

@@ -1,0 +1,229 @@
+"""Tests of the PyBullet hexapod: walking, damage, determinism, continuity, falls."""
+import math
+import pickle
+
+import numpy as np
+import pybullet as p
+import pytest
+
+from sim_bridge import hexapod as hx
+from sim_bridge.controller import tripod_gait
+from sim_bridge.damage import LEG_NAMES, DamageSpecError
+
+STRAIGHT = tripod_gait(0.5, 0.5)
+
+
+@pytest.fixture(scope='module')
+def sim():
+    robot = hx.Hexapod()
+    yield robot
+    robot.close()
+
+
+@pytest.fixture(scope='module')
+def intact_outcome():
+    return hx.evaluate_gait(STRAIGHT)
+
+
+def _same(a: hx.GaitOutcome, b: hx.GaitOutcome):
+    for name in ('generic_reward', 'start_pose', 'end_pose', 'duty_factors'):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert a.fallen == b.fallen
+
+
+def test_model_mass_names_and_standing(sim):
+    sim.set_damage('intact')
+    sim.reset()
+    assert math.isclose(sim.total_mass(), 2.5, abs_tol=1e-9)
+    assert sim.joint_names == list(hx.ALL_JOINT_NAMES)
+    assert sim.joint_names[:3] == ['front_left.hip_yaw', 'front_left.hip_pitch',
+                                   'front_left.knee']
+    np.testing.assert_allclose(sim.pose(), 0.0, atol=1e-3)
+    assert not sim.is_fallen()
+    pos, _ = sim.base_pose_3d()
+    assert 0.15 < pos[2] < 0.18
+
+
+def test_settings_stamp():
+    s = hx.simulator_settings(1 / 240, 3.0)
+    assert s == hx.SIM_DEFAULTS
+    assert set(s) == {'dt', 'gait_duration', 'controller_version', 'model_version'}
+    with pytest.raises(ValueError, match='dt'):
+        hx.simulator_settings(0.0, 3.0)
+
+
+def test_tripod_walks_forward(intact_outcome):
+    dx, dy, dyaw = intact_outcome.generic_reward
+    assert 0.15 < dx < 0.6
+    assert abs(dy) < 0.1 and abs(dyaw) < 0.2
+    assert not intact_outcome.fallen
+    assert np.all(intact_outcome.duty_factors > 0.1)
+    assert math.isclose(intact_outcome.sim_time, 3.0)
+
+
+@pytest.mark.parametrize('turn', [1, -1])
+def test_turning_gait_turns(turn):
+    out = hx.evaluate_gait(tripod_gait(1.0, 0.5, turn=turn))
+    assert turn * out.generic_reward[2] > 1.0
+    assert abs(out.generic_reward[0]) < 0.15 and not out.fallen
+
+
+def test_same_gait_twice_is_bitwise_identical(sim):
+    sim.set_damage('intact')
+    sim.reset()
+    a = sim.execute(STRAIGHT)
+    sim.reset()
+    b = sim.execute(STRAIGHT)
+    _same(a, b)
+    # A fresh instance and the cached evaluate_gait agree too.
+    _same(a, hx.evaluate_gait(STRAIGHT))
+
+
+def test_consecutive_gaits_continue(sim):
+    sim.set_damage('intact')
+    sim.reset()
+    t0 = sim.sim_time
+    first = sim.execute(STRAIGHT)
+    second = sim.execute(STRAIGHT)
+    np.testing.assert_array_equal(second.start_pose, first.end_pose)
+    assert math.isclose(second.sim_time - t0, 6.0)
+    # The second gait's generic reward is expressed in its own start frame.
+    expected = hx.generic_reward(second.start_pose, second.end_pose)
+    np.testing.assert_array_equal(second.generic_reward, expected)
+
+
+def test_callback_period(sim):
+    sim.set_damage('intact')
+    sim.reset()
+    calls = []
+    sim.execute(STRAIGHT, callback=lambda t, pose, q, v: calls.append((t, pose, q, v)),
+                callback_period=0.1)
+    assert len(calls) == 30
+    times = np.array([c[0] for c in calls])
+    np.testing.assert_allclose(np.diff(times), 0.1, atol=1e-9)
+    assert calls[-1][2].shape == (18,) and calls[-1][3].shape == (18,)
+    assert calls[-1][1].shape == (3,)
+
+
+def test_remove_leg_drops_mass_and_contacts(sim, intact_outcome):
+    sim.set_damage('remove:middle_right')
+    try:
+        assert math.isclose(sim.total_mass(), 2.5 - 0.245, abs_tol=1e-9)
+        assert len(sim.joint_names) == 15
+        assert not any(n.startswith('middle_right.') for n in sim.joint_names)
+        sim.reset()
+        out = sim.execute(STRAIGHT)
+        assert out.duty_factors[LEG_NAMES.index('middle_right')] == 0.0
+        # Its links are gone, not just hidden: no foot link is left to touch the ground.
+        assert sim._foot_links[LEG_NAMES.index('middle_right')] == -1
+        assert not np.allclose(out.generic_reward, intact_outcome.generic_reward, atol=0.02)
+    finally:
+        sim.set_damage('intact')
+
+
+def test_shorten_changes_outcome(intact_outcome):
+    out = hx.evaluate_gait(STRAIGHT, damage='shorten:front_left:0.5')
+    assert np.linalg.norm(out.generic_reward - intact_outcome.generic_reward) > 0.02
+
+
+def test_shortened_leg_is_shorter():
+    with hx.Hexapod(damage='shorten:rear_right:0.5') as robot:
+        cid, rid = robot.client_id, robot.robot_id
+        feet = robot._foot_links
+        z = {leg: p.getLinkState(rid, feet[i], physicsClientId=cid)[0][2]
+             for i, leg in enumerate(LEG_NAMES)}
+        # The short leg hangs above the ground (the others carry the body).
+        assert z['rear_right'] > z['rear_left'] + 0.03
+
+
+def test_block_keeps_joint_at_angle(intact_outcome):
+    with hx.Hexapod(damage='block:front_left.hip_pitch=0.3') as robot:
+        index = robot.joint_names.index('front_left.hip_pitch')
+        seen = []
+        out = robot.execute(STRAIGHT, callback=lambda t, pose, q, v: seen.append(q[index]))
+        assert seen and all(q == 0.3 for q in seen)
+        # The femur really is welded at 0.3 rad: its pitch w.r.t. the coxa does not move.
+        cid, rid = robot.client_id, robot.robot_id
+        names = {p.getJointInfo(rid, j, physicsClientId=cid)[12].decode(): j
+                 for j in range(p.getNumJoints(rid, physicsClientId=cid))}
+        coxa = p.getLinkState(rid, names['front_left.coxa'], physicsClientId=cid)[1]
+        femur = p.getLinkState(rid, names['front_left.femur'], physicsClientId=cid)[1]
+        _, rel = p.invertTransform([0, 0, 0], coxa)
+        _, rel = p.multiplyTransforms([0, 0, 0], rel, [0, 0, 0], femur)
+        axis, angle = p.getAxisAngleFromQuaternion(rel)
+        assert math.isclose(angle, 0.3, abs_tol=1e-5)
+    assert np.linalg.norm(out.generic_reward - intact_outcome.generic_reward) > 0.01
+
+
+def test_set_damage_keeps_pose(sim):
+    sim.set_damage('intact')
+    sim.reset()
+    sim.execute(tripod_gait(1.0, 0.5, turn=1))
+    before = sim.pose()
+    t = sim.sim_time
+    sim.set_damage('remove:middle_right,block:front_left.knee')
+    np.testing.assert_allclose(sim.pose()[:2], before[:2], atol=2e-3)
+    assert abs(hx.wrap_angle(sim.pose()[2] - before[2])) < 2e-3
+    assert sim.sim_time == t and not sim.is_fallen()
+    sim.reset()
+    np.testing.assert_allclose(sim.pose(), 0.0, atol=1e-3)
+    sim.set_damage('intact')
+
+
+def test_unknown_damage_lists_valid_names():
+    with pytest.raises(DamageSpecError, match='middle_right'):
+        hx.evaluate_gait(STRAIGHT, damage='remove:middle')
+
+
+def test_fall_detection_upside_down(sim):
+    sim.set_damage('intact')
+    sim.reset()
+    assert not sim.is_fallen()
+    p.resetBasePositionAndOrientation(sim.robot_id, [0, 0, 0.3],
+                                      p.getQuaternionFromEuler([math.pi, 0, 0]),
+                                      physicsClientId=sim.client_id)
+    assert sim.is_fallen()
+    p.resetBasePositionAndOrientation(sim.robot_id, [0, 0, 0.3],
+                                      p.getQuaternionFromEuler([0, math.radians(70), 0]),
+                                      physicsClientId=sim.client_id)
+    assert sim.is_fallen()
+    sim.reset()
+    assert not sim.is_fallen()
+
+
+def test_generic_reward_frame_and_wrap():
+    gr = hx.generic_reward([1.0, 1.0, math.pi / 2], [1.0, 2.0, -math.pi + 0.1])
+    # Facing +y, a step of +1 in world y is straight ahead; yaw change wraps to +pi/2+0.1.
+    np.testing.assert_allclose(gr, [1.0, 0.0, math.pi / 2 + 0.1], atol=1e-12)
+    assert hx.wrap_angle(-math.pi) == math.pi
+
+
+def test_several_instances_coexist():
+    a, b = hx.Hexapod(), hx.Hexapod(damage='remove:front_left')
+    try:
+        assert a.client_id != b.client_id
+        _same(a.execute(STRAIGHT), hx.evaluate_gait(STRAIGHT))
+    finally:
+        a.close()
+        b.close()
+
+
+def test_evaluate_gait_is_picklable_and_validates():
+    assert pickle.loads(pickle.dumps(hx.evaluate_gait)) is hx.evaluate_gait
+    with pytest.raises(ValueError, match='shape'):
+        hx.evaluate_gait(np.zeros(3))
+
+
+def test_gui_without_display_is_a_clear_error(monkeypatch):
+    monkeypatch.delenv('DISPLAY', raising=False)
+    monkeypatch.delenv('WAYLAND_DISPLAY', raising=False)
+    with pytest.raises(RuntimeError, match='display'):
+        hx.Hexapod(gui=True)
+
+
+@pytest.mark.slow
+def test_random_gaits_mostly_upright():
+    rng = np.random.default_rng(0)
+    outcomes = [hx.evaluate_gait(rng.random(36)) for _ in range(20)]
+    assert sum(o.fallen for o in outcomes) <= 2
+    assert all(np.all(np.abs(o.generic_reward[:2]) < 1.5) for o in outcomes)
