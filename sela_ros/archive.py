@@ -159,6 +159,7 @@ def atomic_savez(path: str | os.PathLike, **arrays: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.tmp', dir=path.parent)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
         with os.fdopen(fd, 'wb') as handle:
             np.savez_compressed(handle, **arrays)
             handle.flush()
@@ -175,6 +176,12 @@ def atomic_savez(path: str | os.PathLike, **arrays: np.ndarray) -> None:
         os.fsync(dir_fd)
     finally:
         os.close(dir_fd)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def _validate(archive: Archive) -> None:

@@ -245,10 +245,11 @@ def main(argv: list[str] | None = None) -> int:
                              evaluator='synthetic' if args.synthetic else 'hexapod')
     archive.save(args.out)
     size = args.out.stat().st_size
-    done = remaining
-    summary = {'evaluations': run.n_evaluations, 'this_session_evaluations': done,
-               'wall_s': round(wall, 1), 'evals_per_s': round(done / wall, 2) if wall else None,
-               'filled_cells': len(archive), 'cells': int(np.prod(args.grid)),
+    # run.elapsed and the counters survive resumes, so these are figures of the whole build.
+    summary = {'evaluations': run.n_evaluations, 'this_session_evaluations': remaining,
+               'this_session_wall_s': round(wall, 1), 'batch_time_s': round(run.elapsed, 1),
+               'evals_per_s': round(run.n_evaluations / run.elapsed, 2) if run.elapsed else None,
+               'filled_cells': len(archive), 'cells': int(np.prod(run.archive.dims)),
                'fallen': run.n_invalid, **gait_family_counts(archive),
                'file_bytes': size, 'out': str(args.out)}
     if args.figure is not None:
