@@ -35,6 +35,10 @@ SIM_DEFAULTS = {
     'model_version': MODEL_VERSION,
 }
 
+# The intact model as a file, for robot_state_publisher / RViz; regenerate with
+# ``python -c "from sim_bridge.hexapod import write_urdf; write_urdf()"`` when the model changes.
+URDF_PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'urdf', 'hexapod.urdf')
+
 ALL_JOINT_NAMES = tuple(f'{leg}.{joint}' for leg in LEG_NAMES for joint in JOINT_NAMES)
 
 # Geometry and masses (resibots pexod reference: body 1.03 kg, total 2.5 kg).
@@ -169,6 +173,13 @@ def hexapod_urdf(damage='intact') -> str:
                      f'</joint>\n')
     parts.append('</robot>\n')
     return ''.join(parts)
+
+
+def write_urdf(path: str = URDF_PATH, damage='intact') -> str:
+    """Write :func:`hexapod_urdf` to ``path``; return the path."""
+    with open(path, 'w', encoding='utf-8') as handle:
+        handle.write(hexapod_urdf(damage))
+    return path
 
 
 # --------------------------------------------------------------------------- outcomes

@@ -44,6 +44,11 @@ def test_model_mass_names_and_standing(sim):
     assert 0.15 < pos[2] < 0.18
 
 
+def test_shipped_urdf_is_the_intact_model():
+    with open(hx.URDF_PATH, encoding='utf-8') as handle:
+        assert handle.read() == hx.hexapod_urdf('intact')
+
+
 def test_settings_stamp():
     s = hx.simulator_settings(1 / 240, 3.0)
     assert s == hx.SIM_DEFAULTS
