@@ -223,7 +223,9 @@ class CandidateSetGP:
         self._sq_norms = np.sum(candidates * candidates, axis=1)
         self._chol = _GrowingCholesky(prior_mean.shape[1])
         self._V = np.zeros((8, candidates.shape[0]))
-        self._mu = prior_mean.copy()
+        # Outputs stored as rows (D, M): per-output updates are contiguous axpy's, much
+        # faster than broadcasting over an (M, D) array with a small D.
+        self._mu_t = np.ascontiguousarray(prior_mean.T)
         self._var = np.full(candidates.shape[0], self.variance)
         self._indices: list[int] = []
         self._Y: list[np.ndarray] = []
@@ -280,7 +282,8 @@ class CandidateSetGP:
         v = krow - row @ self._V[:n] if n else krow
         v /= d
         self._V[n] = v
-        self._mu += v[:, None] * self._chol.beta[n][None, :]
+        for j, b in enumerate(self._chol.beta[n]):
+            self._mu_t[j] += b * v
         self._var -= v * v
         self._indices.append(index)
         self._Y.append(y)
@@ -288,4 +291,10 @@ class CandidateSetGP:
     def query(self):
         """Posterior of all candidates: ``(mu (M, D), var (M,))`` (views: do not modify)."""
         np.maximum(self._var, 0.0, out=self._var)
-        return self._mu, self._var
+        return self._mu_t.T, self._var
+
+    def query_columns(self):
+        """Like :meth:`query` with the means as rows, ``(mu (D, M), var (M,))``: the
+        layout to use for fast per-output arithmetic over a large archive."""
+        np.maximum(self._var, 0.0, out=self._var)
+        return self._mu_t, self._var

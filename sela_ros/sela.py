@@ -33,6 +33,10 @@ class PointMotion:
         """Poses after behaviours with generic rewards ``gr`` ((k,) or (M, k))."""
         return np.asarray(pose, dtype=float)[:2] + np.asarray(gr, dtype=float)
 
+    def predict_xy_columns(self, pose, gr_t):
+        """Predicted ``(x (M,), y (M,))`` from GRs given as rows ``gr_t`` (k, M)."""
+        return pose[0] + gr_t[0], pose[1] + gr_t[1]
+
     def generic_reward(self, pose_before, pose_after):
         """``afun``: the displacement between two poses."""
         return np.asarray(pose_after, dtype=float)[:2] - np.asarray(pose_before, dtype=float)[:2]
@@ -52,6 +56,11 @@ class SE2Motion:
         dx, dy, dyaw = gr[..., 0], gr[..., 1], gr[..., 2]
         return np.stack([x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(yaw + dyaw)],
                         axis=-1)
+
+    def predict_xy_columns(self, pose, gr_t):
+        """Predicted ``(x (M,), y (M,))`` from GRs given as rows ``gr_t`` (k, M)."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        return pose[0] + c * gr_t[0] - s * gr_t[1], pose[1] + s * gr_t[0] + c * gr_t[1]
 
     def generic_reward(self, pose_before, pose_after):
         """``afun``: world displacement rotated into the start frame, yaw change wrapped."""
@@ -209,14 +218,15 @@ class SELA:
         pose = self._check_pose(pose)
         path = np.asarray(self.planner(pose[:2], self.goal), dtype=float)
         waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
-        mu, sigma = self.predict()
-        predicted = self.motion.predict(pose, mu)
-        diff = predicted[:, :2] - waypoint
-        reward = -np.sqrt(np.einsum('ij,ij->i', diff, diff))
+        mu_t, var = self._gp.query_columns()
+        x, y = self.motion.predict_xy_columns(pose, mu_t)
+        reward = -np.hypot(x - waypoint[0], y - waypoint[1])
+        sigma = np.sqrt(var)
         index = acquisition.ucb(reward, sigma, self.config.acquisition_ucb_alpha)
-        return Decision(index=index, waypoint=waypoint, predicted_gr=mu[index].copy(),
-                        predicted_pose=predicted[index].copy(), reward=float(reward[index]),
-                        sigma=float(sigma[index]), path=path)
+        gr = mu_t[:, index].copy()
+        return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
+                        predicted_pose=self.motion.predict(pose, gr),
+                        reward=float(reward[index]), sigma=float(sigma[index]), path=path)
 
     def tell(self, index: int, observed_gr) -> None:
         """Learn that behaviour ``index`` produced the generic reward ``observed_gr``."""

@@ -1,0 +1,73 @@
+"""Time one SELA step (GP update + UCB over the archive) and the toy experiment.
+
+Run: ``.venv/bin/python benchmarks/bench_sela_step.py [--toy-replicates N]``.
+Prints figures only; tests never assert on timings.
+"""
+import argparse
+import os
+
+# One BLAS thread: on a shared, loaded machine OpenBLAS's threads for the (N, M) products
+# cost 3-4x more than they save (measured: 20 ms vs 6 ms per step at 1e5 candidates).
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np  # noqa: E402
+
+from sela_ros.sela import SELA, PointMotion, observed_generic_reward  # noqa: E402
+
+
+def bench_step(num_candidates, observations=20, dim=8, repeats=15, seed=0):
+    """(median, min) time of ask() + tell() with the given archive size after N observations.
+
+    The min is the figure to quote on a shared, loaded machine.
+
+    The planner is the straight line, so the time is the GP update plus UCB over all
+    candidates (A* on a map is not included).
+    """
+    rng = np.random.default_rng(seed)
+    candidates = rng.random((num_candidates, dim))
+    prior = 0.1 * rng.normal(size=(num_candidates, 2))
+    sela = SELA(candidates, prior, PointMotion(), goal=[2.0, 2.0])
+    pose = np.zeros(2)
+    for _ in range(observations):
+        d = sela.ask(pose)
+        sela.tell(d.index, prior[d.index] + 0.01 * rng.normal(size=2))
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        d = sela.ask(pose)
+        after = pose + prior[d.index] * 0.9
+        sela.tell(d.index, observed_generic_reward(pose, after, sela.motion))
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), float(np.min(times)), sela.gp.num_samples
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument('--toy-replicates', type=int, default=10)
+    parser.add_argument('--max-candidates', type=float, default=1e6)
+    args = parser.parse_args()
+    print('SELA step (ask + tell, 8-D descriptors, 2 GR dims):')
+    for m in (1e3, 1e4, 1e5, 1e6):
+        if m > args.max_candidates:
+            break
+        reps = 15 if m <= 1e5 else 5
+        t, t_min, n = bench_step(int(m), repeats=reps)
+        print(f'  {int(m):>8d} candidates, {n - reps + 1:2d}-{n:2d} observations: median '
+              f'{1e3 * t:8.2f} ms, min {1e3 * t_min:8.2f} ms')
+    with tempfile.TemporaryDirectory() as out:
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', 'toy',
+                        '--replicates', str(args.toy_replicates), '--seed', '0', '--out', out,
+                        '--workers', '2', '--quiet'], check=True, stdout=subprocess.DEVNULL)
+        wall = time.perf_counter() - t0
+    print(f'toy experiment, {args.toy_replicates} replicates x 4 methods, 2 workers, noise '
+          f'std 0.1: {wall:.1f} s wall')
+
+
+if __name__ == '__main__':
+    main()
