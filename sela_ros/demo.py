@@ -60,8 +60,12 @@ def main(argv=None):
         damage = parse_damage(args.damage).canonical()
     except DamageSpecError as exc:
         build_parser().error(str(exc))
-    from sela_ros.ros_env import ensure_ros_environment, executable, package_prefix, \
-        ros_environment
+    from sela_ros.ros_env import (
+        ensure_ros_environment,
+        executable,
+        package_prefix,
+        ros_environment,
+    )
 
     if args.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
@@ -108,7 +112,7 @@ def main(argv=None):
 def run_client(args, damage, out, procs):
     """The user's side of the mission: send the goal, follow the steps, record, summarise."""
     import rclpy
-    from diagnostic_msgs.msg import DiagnosticArray
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
     from geometry_msgs.msg import PointStamped, PoseStamped
     from nav_msgs.msg import OccupancyGrid, Odometry, Path
     from rclpy.node import Node
@@ -156,7 +160,7 @@ def run_client(args, damage, out, procs):
             elif status.name == MISSION_STATUS and 'success' in values:
                 state['done'] = values['success'] == 'True'
                 state['final'] = values
-            elif status.name == DETECTOR_STATUS and status.level == 2:
+            elif status.name == DETECTOR_STATUS and status.level == DiagnosticStatus.ERROR:
                 detections.append(values)
                 print(f"        damage detector: error {float(values['error']):.3f} m > "
                       f"{values['threshold']} m -> {values.get('adapt', 'adapt')}", flush=True)

@@ -21,7 +21,7 @@ import numpy as np
 
 from sela_ros.damage_detection import DamageDetector, DetectorConfig
 from sela_ros.planning import next_waypoint
-from sela_ros.sela import SE2Motion, SELA, SELAConfig
+from sela_ros.sela import SELA, SE2Motion, SELAConfig
 
 # SELA receives the waypoint itself (a two-point path) and must not shorten it.
 _NO_LOOKAHEAD = 1e9

@@ -18,6 +18,7 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry, Path
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -116,7 +117,13 @@ class PlannerNode(Node):
         return grid_from_description(
             self.get_parameter('map.resolution').value, self.get_parameter('map.origin').value,
             self.get_parameter('map.width').value, self.get_parameter('map.height').value,
-            self.get_parameter('map.obstacles').value)
+            self._obstacles())
+
+    def _obstacles(self):
+        try:
+            return list(self.get_parameter('map.obstacles').value)
+        except ParameterUninitializedException:
+            return []  # no obstacles given: ROS cannot hold an empty typed array in YAML
 
     def parameters_callback(self, params):
         for param in params:

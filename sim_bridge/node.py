@@ -15,9 +15,10 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
-from rosgraph_msgs.msg import Clock
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -27,7 +28,6 @@ from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 from sim_bridge.damage import DamageSpecError, parse_damage
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.hexapod import Hexapod
-
 
 
 class SimBridge(Node):
@@ -61,7 +61,7 @@ class SimBridge(Node):
         self._next_auto_id = 1_000_000_000  # ids for commands sent without one
         self._commands_done = 0
 
-        self.clock_pub = self.create_publisher(Clock, '/clock', STATE_QOS)
+        self.clock_pub = self.create_publisher(ClockMsg, '/clock', STATE_QOS)
         self.odom_pub = self.create_publisher(conv.Odometry, '/hexapod/odom', STATE_QOS)
         self.joint_pub = self.create_publisher(JointState, '/hexapod/joint_states', STATE_QOS)
         self.outcome_pub = self.create_publisher(Float64MultiArray, '/hexapod/behavior_outcome',
@@ -77,6 +77,10 @@ class SimBridge(Node):
         self._worker = threading.Thread(target=self._work_loop, name='gait_worker', daemon=True)
         self._worker.start()
         self._publish_state(self.env.robot.sim_time)
+        # While no gait runs, keep /clock and odom alive (sim time stands still) so that
+        # nodes started later get a pose; a wall-clock timer, since sim time is not moving.
+        self.create_timer(0.1, self.idle_callback, clock=Clock(clock_type=ClockType.STEADY_TIME),
+                          callback_group=MutuallyExclusiveCallbackGroup())
         self.get_logger().info(f"hexapod ready, damage '{damage}', "
                                f'noise std {self.env.noise_std} m')
 
@@ -129,6 +133,13 @@ class SimBridge(Node):
                                                reason='publish_period must be > 0')
                 self.publish_period = float(param.value)
         return SetParametersResult(successful=True)
+
+    def idle_callback(self):
+        if self._sim_lock.acquire(blocking=False):
+            try:
+                self._publish_state(self.env.robot.sim_time)
+            finally:
+                self._sim_lock.release()
 
     # --- worker thread -------------------------------------------------------------------
 
@@ -186,7 +197,7 @@ class SimBridge(Node):
 
     def _publish_state(self, sim_time, pose=None, positions=None, velocities=None):
         stamp = conv.time_to_msg(sim_time)
-        self.clock_pub.publish(Clock(clock=stamp))
+        self.clock_pub.publish(ClockMsg(clock=stamp))
         pose = self.env.true_pose() if pose is None else pose
         odom = conv.odometry_msg(pose, stamp=sim_time)
         self.odom_pub.publish(odom)
