@@ -15,6 +15,7 @@ import argparse
 import json
 import math
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -184,7 +185,13 @@ def archive_figure(archive: Archive, path: str | os.PathLike) -> Path:
     return path
 
 
+def _exit_on_sigterm(signum, frame):
+    # Unwind through `finally` so the worker pool is shut down, not orphaned.
+    sys.exit(128 + signum)
+
+
 def main(argv: list[str] | None = None) -> int:
+    signal.signal(signal.SIGTERM, _exit_on_sigterm)
     parser = make_parser()
     args = parser.parse_args(argv)
     _check_args(parser, args)
