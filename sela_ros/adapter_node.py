@@ -108,6 +108,7 @@ class SelaAdapter(Node):
         if self.state in ('idle', 'done'):
             self.state = 'ready'
         self.get_logger().info(f'new goal ({goal[0]:.2f}, {goal[1]:.2f})')
+        self.tick()
 
     def odom_callback(self, msg):
         try:
@@ -121,6 +122,8 @@ class SelaAdapter(Node):
                 conv.point_from_msg(msg)
         except conv.MessageError as exc:
             self.get_logger().error(f'ignored target: {exc}')
+            return
+        self.tick()
 
     def outcome_callback(self, msg):
         try:
@@ -143,6 +146,7 @@ class SelaAdapter(Node):
             values = {kv.key: kv.value for kv in status.values}
             if values.get('behavior_id') == str(self.pending.get('id')):
                 self.state = 'ready'
+                self.tick()
 
     def adapt_callback(self, request, response):
         restarting = self.logic.adapting
@@ -173,6 +177,7 @@ class SelaAdapter(Node):
     # --- the step state machine ----------------------------------------------------------
 
     def tick(self):
+        """Advance the step state machine; called by events and by a 10 ms wall timer."""
         now = self.wall.now().nanoseconds * 1e-9
         if self.state == 'ready':
             self._start_step(now)
@@ -205,6 +210,8 @@ class SelaAdapter(Node):
                         'future': self.plan_client.call_async(request),
                         'deadline': now + 10.0}
         self.state = 'planning'
+        # Event-driven: continue as soon as the plan is back (the timer is for time-outs).
+        self.pending['future'].add_done_callback(lambda _: self.tick())
 
     def _finish_planning(self, now):
         future = self.pending['future']

@@ -113,18 +113,26 @@ def waypoint_for(planner, pose, goal, lookahead):
     return next_waypoint(path, np.asarray(pose, float)[:2], lookahead), path
 
 
+def as_seen_in_odometry(pose):
+    """The pose after a trip through nav_msgs/Odometry (yaw -> quaternion -> yaw)."""
+    x, y, yaw = (float(v) for v in pose)
+    qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+    return np.array([x, y, math.atan2(2.0 * (qw * qz), 1.0 - 2.0 * (qz * qz))])
+
+
 def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
                 detector_config=None, max_steps=100, adapt_on_start=False, on_step=None):
     """Run the whole mission in process against ``env`` (an ObservedHexapod-like object).
 
-    Returns ``(success, logic)``; success is judged on the observed pose within
-    ``goal.eps``, as the adapter node judges it.
+    The first step starts from the robot's odometry, later ones from the observed pose after
+    each gait, exactly as the ``sela_adapter`` node does. Returns ``(success, logic)``;
+    success is judged on the observed pose within ``goal.eps``, as the adapter judges it.
     """
     sela = make_sela(archive, sela_config)
     sela.set_goal(goal)
     logic = MissionLogic(sela, adapt_on_start=adapt_on_start)
     detector = DamageDetector(detector_config or DetectorConfig())
-    pose = env.observed_pose()
+    pose = as_seen_in_odometry(env.true_pose())
     for _ in range(max_steps):
         if sela.goal_reached(pose):
             return True, logic

@@ -52,15 +52,19 @@ class ObservedHexapod:
         robot: the simulated hexapod (owns physics, damage and sim time).
         noise_std: standard deviation (m) of the Gaussian noise on observed positions.
         seed: seed of the observation noise generator.
+        right_on_fall: after a gait that ends fallen or flipped, rebuild the robot standing
+            where it lies (the step still counts, and is reported as fallen).
     """
 
-    def __init__(self, robot, noise_std=0.0, seed=0):
+    def __init__(self, robot, noise_std=0.0, seed=0, right_on_fall=True):
         noise_std = float(noise_std)
         if not (math.isfinite(noise_std) and noise_std >= 0.0):
             raise ValueError(f'noise_std must be a finite number >= 0, got {noise_std}')
         self.robot = robot
         self.noise_std = noise_std
         self.rng = np.random.default_rng(seed)
+        self.right_on_fall = bool(right_on_fall)
+        self.falls = 0
         self._observed = self._observe(self.robot.pose())
 
     def _observe(self, true_pose):
@@ -86,6 +90,10 @@ class ObservedHexapod:
             if callback_period is not None:
                 kwargs['callback_period'] = callback_period
         outcome = self.robot.execute(np.asarray(params, dtype=float), **kwargs)
+        if outcome.fallen:
+            self.falls += 1
+            if self.right_on_fall:
+                self.robot.set_damage(self.robot.damage)  # rebuilt standing at x, y, yaw
         observed_start = self._observed
         observed_end = self._observe(outcome.end_pose)
         self._observed = observed_end

@@ -52,7 +52,8 @@ class SimBridge(Node):
                         gait_duration=self.get_parameter('sim.gait_duration').value,
                         damage=damage, gui=self.get_parameter('sim.gui').value)
         self.env = ObservedHexapod(robot, self.get_parameter('observation.noise_std').value,
-                                   seed=self.get_parameter('seed').value)
+                                   seed=self.get_parameter('seed').value,
+                                   right_on_fall=self.get_parameter('reset_on_fall').value)
         self.publish_period = float(self.get_parameter('publish_period').value)
         self.reset_on_fall = bool(self.get_parameter('reset_on_fall').value)
 
@@ -187,7 +188,6 @@ class SimBridge(Node):
                                   hardware_id='hexapod')
         status.values = [KeyValue(key='behavior_id', value=str(behavior_id))]
         if self.reset_on_fall:
-            self.env.robot.set_damage(self.env.robot.damage)  # rebuild upright where it lies
             status.values.append(KeyValue(key='action', value='righted in place'))
         msg = DiagnosticArray()
         msg.header.stamp = conv.time_to_msg(self.env.robot.sim_time)
