@@ -234,8 +234,8 @@ class SelaAdapter(Node):
         decision = self.logic.decide(self.pending['pose'], waypoint)
         self.pending.update(decision=decision, waypoint=waypoint, id=self.next_id)
         self.next_id += 1
-        self.prediction_pub.publish(conv.prediction_to_msg(self.pending['id'],
-                                                           decision.predicted_gr))
+        self.prediction_pub.publish(conv.prediction_to_msg(
+            self.pending['id'], decision.predicted_gr, self.logic.prediction_sigma(decision)))
         self._send(now)
 
     def _send(self, now):

@@ -9,8 +9,9 @@ defined in one place (and documented in the README):
 * ``/hexapod/behavior_outcome`` (``std_msgs/Float64MultiArray``): a flat record whose field
   names are listed, in order, in ``layout.dim[0].label``; ``data[0]`` is the id of the command
   it answers, so each command pairs with exactly one outcome.
-* ``/sela/prediction`` (``std_msgs/Float64MultiArray``): ``[behavior_id, dx, dy, dyaw]``,
-  what the adapter expected the command to do, for the damage detector.
+* ``/sela/prediction`` (``std_msgs/Float64MultiArray``): ``[behavior_id, dx, dy, dyaw,
+  sigma]``, what the adapter expected the command to do and how unsure it was (sigma 0 while
+  it trusts the intact map), for the damage detector.
 """
 import math
 from dataclasses import dataclass, field
@@ -28,7 +29,7 @@ OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'star
                   'end_x', 'end_y', 'end_yaw', 'fallen', 'sim_time',
                   'duty_0', 'duty_1', 'duty_2', 'duty_3', 'duty_4', 'duty_5')
 OUTCOME_LABEL = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS)
-PREDICTION_LABEL = 'prediction:behavior_id,dx,dy,dyaw'
+PREDICTION_LABEL = 'prediction:behavior_id,dx,dy,dyaw,sigma'
 
 
 class MessageError(ValueError):
@@ -159,21 +160,24 @@ def outcome_from_msg(msg):
                            duty_factors=values[12:18].copy())
 
 
-def prediction_to_msg(behavior_id, generic_reward):
+def prediction_to_msg(behavior_id, generic_reward, sigma=0.0):
     gr = _finite_array(generic_reward, 'prediction', 3)
+    sigma = _finite_array([sigma], 'prediction sigma', 1)[0]
     msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label=PREDICTION_LABEL, size=4, stride=4)]
-    msg.data = [float(behavior_id), *gr.tolist()]
+    msg.layout.dim = [MultiArrayDimension(label=PREDICTION_LABEL, size=5, stride=5)]
+    msg.data = [float(behavior_id), *gr.tolist(), float(sigma)]
     return msg
 
 
 def prediction_from_msg(msg):
     if not msg.layout.dim or msg.layout.dim[0].label != PREDICTION_LABEL:
         raise MessageError(f'prediction: layout label is not {PREDICTION_LABEL!r}')
-    values = _finite_array(msg.data, 'prediction', 4)
+    values = _finite_array(msg.data, 'prediction', 5)
     if values[0] < 0 or values[0] != int(values[0]):
         raise MessageError(f'prediction: id {values[0]} is not a non-negative integer')
-    return int(values[0]), values[1:4].copy()
+    if values[4] < 0:
+        raise MessageError(f'prediction: sigma {values[4]} is negative')
+    return int(values[0]), values[1:4].copy(), float(values[4])
 
 
 # --- poses, goals, paths -------------------------------------------------------------------

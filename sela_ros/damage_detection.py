@@ -6,9 +6,12 @@ predicted to produce and the displacement observed,
 
     error = ||(dx, dy)_observed - (dx, dy)_predicted|| + yaw_weight * |wrap(dyaw_o - dyaw_p)|
 
-averaged over the last ``window`` outcomes. The detector fires when that average exceeds
-``threshold``, then stays quiet for ``cooldown`` outcomes so that the adaptation it
-triggered has time to learn before it can be restarted.
+less what the predictor itself said it did not know (``sigma_scale`` times the predictive
+standard deviation of the behaviour; 0 while the intact map is trusted), averaged over the
+last ``window`` outcomes. The detector fires when that average exceeds ``threshold``, then
+stays quiet for ``cooldown`` outcomes. Discounting the predictive uncertainty is what lets
+it tell the errors of learning in progress (new behaviours, large sigma) from a new damage
+(behaviours the GPs already know, small sigma, large error).
 """
 import math
 from collections import deque
@@ -19,13 +22,14 @@ from dataclasses import dataclass
 class DetectorConfig:
     """Damage detector parameters (``detection.*`` in config/sela.yaml)."""
 
-    threshold: float = 0.1
+    threshold: float = 0.25
     yaw_weight: float = 0.2
-    window: int = 1
+    window: int = 2
     cooldown: int = 5
+    sigma_scale: float = 1.0
 
     def __post_init__(self):
-        for name in ('threshold', 'yaw_weight'):
+        for name in ('threshold', 'yaw_weight', 'sigma_scale'):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
                     or not math.isfinite(value) or value < 0:
@@ -66,13 +70,20 @@ class DamageDetector:
         self._since_fire = None  # outcomes seen since the last detection (None: never fired)
         self.detections = 0
 
-    def observe(self, predicted_gr, observed_gr):
-        """Judge one outcome; returns a :class:`Verdict` (``fire`` means: adapt now)."""
-        for name, value in (('predicted', predicted_gr), ('observed', observed_gr)):
+    def observe(self, predicted_gr, observed_gr, sigma=0.0):
+        """Judge one outcome; returns a :class:`Verdict` (``fire`` means: adapt now).
+
+        Args:
+            predicted_gr: the generic reward the behaviour was predicted to produce.
+            observed_gr: the generic reward observed.
+            sigma: predictive standard deviation of that prediction (0: fully trusted).
+        """
+        for name, value in (('predicted', predicted_gr), ('observed', observed_gr),
+                            ('sigma', [sigma])):
             if any(not math.isfinite(float(v)) for v in value):
-                raise ValueError(f'{name} generic reward has a non-finite value: {value}')
+                raise ValueError(f'{name} has a non-finite value: {value}')
         error = prediction_error(predicted_gr, observed_gr, self.config.yaw_weight)
-        self._errors.append(error)
+        self._errors.append(error - self.config.sigma_scale * max(float(sigma), 0.0))
         mean_error = sum(self._errors) / len(self._errors)
         if self._since_fire is not None:
             self._since_fire += 1

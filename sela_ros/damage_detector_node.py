@@ -31,6 +31,7 @@ class DamageDetectorNode(Node):
         self.declare_parameter('detection.yaw_weight', defaults.yaw_weight)
         self.declare_parameter('detection.window', defaults.window)
         self.declare_parameter('detection.cooldown', defaults.cooldown)
+        self.declare_parameter('detection.sigma_scale', defaults.sigma_scale)
         self.detector = DamageDetector(self._config_from({}))
         self.predictions = {}
         self.waiting = []  # verdicts waiting for the adapter's answer: (future, deadline, msg)
@@ -48,7 +49,7 @@ class DamageDetectorNode(Node):
 
     def _config_from(self, overrides):
         values = {name: self.get_parameter(f'detection.{name}').value
-                  for name in ('threshold', 'yaw_weight', 'window', 'cooldown')}
+                  for name in ('threshold', 'yaw_weight', 'window', 'cooldown', 'sigma_scale')}
         values.update(overrides)
         return DetectorConfig(**values)
 
@@ -65,11 +66,11 @@ class DamageDetectorNode(Node):
 
     def prediction_callback(self, msg):
         try:
-            behavior_id, gr = conv.prediction_from_msg(msg)
+            behavior_id, gr, sigma = conv.prediction_from_msg(msg)
         except conv.MessageError as exc:
             self.get_logger().error(f'ignored prediction: {exc}')
             return
-        self.predictions[behavior_id] = gr
+        self.predictions[behavior_id] = (gr, sigma)
         while len(self.predictions) > 1000:
             self.predictions.pop(next(iter(self.predictions)))
 
@@ -79,10 +80,10 @@ class DamageDetectorNode(Node):
         except conv.MessageError as exc:
             self.get_logger().error(f'ignored outcome: {exc}')
             return
-        predicted = self.predictions.pop(outcome.behavior_id, None)
-        if predicted is None:
+        prediction = self.predictions.pop(outcome.behavior_id, None)
+        if prediction is None:
             return  # no prediction: a command from someone else, nothing to compare with
-        verdict = self.detector.observe(predicted, outcome.generic_reward)
+        verdict = self.detector.observe(prediction[0], outcome.generic_reward, prediction[1])
         level = DiagnosticStatus.ERROR if verdict.fire else DiagnosticStatus.OK
         status = DiagnosticStatus(
             level=level, name=STATUS_NAME, hardware_id='hexapod',
@@ -92,6 +93,7 @@ class DamageDetectorNode(Node):
         status.values = [KeyValue(key='behavior_id', value=str(outcome.behavior_id)),
                          KeyValue(key='error', value=f'{verdict.error:.6f}'),
                          KeyValue(key='mean_error', value=f'{verdict.mean_error:.6f}'),
+                         KeyValue(key='sigma', value=f'{prediction[1]:.6f}'),
                          KeyValue(key='threshold', value=str(self.detector.config.threshold)),
                          KeyValue(key='detections', value=str(self.detector.detections))]
         out = DiagnosticArray()

@@ -95,6 +95,10 @@ class MissionLogic:
         self.records.append(record)
         return record
 
+    def prediction_sigma(self, decision):
+        """How unsure the prediction of ``decision`` is: 0 while the map is trusted."""
+        return float(decision.sigma) if self.adapting else 0.0
+
     def adapt(self):
         """Step 5: start adaptation, or restart it from scratch if it was running."""
         if self.adapting:
@@ -139,9 +143,11 @@ def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
         waypoint, _ = waypoint_for(planner, pose, goal, lookahead)
         decision = logic.decide(pose, waypoint)
         execution = env.execute(archive.params[decision.index])
+        sigma = logic.prediction_sigma(decision)
         record = logic.outcome(decision, pose, execution.observed_generic_reward,
                                fallen=execution.fallen, true_pose=execution.true_end)
-        verdict = detector.observe(decision.predicted_gr, execution.observed_generic_reward)
+        verdict = detector.observe(decision.predicted_gr, execution.observed_generic_reward,
+                                   sigma)
         record.error = verdict.error
         if verdict.fire:
             logic.adapt()

@@ -196,5 +196,15 @@ def test_shipped_archive_is_valid():
     if not path.exists():
         pytest.skip('no shipped archive yet')
     archive = load_archive(path)
-    assert len(archive) >= 1000
     assert path.stat().st_size <= 20 * 1024 * 1024
+    assert len(archive) >= 2000
+    dx, dy, dyaw = archive.generic_reward.T
+    # forward, backward, sideways and turning gaits are all there
+    assert np.any(dx > 0.1) and np.any(dx < -0.1)
+    assert np.any(np.abs(dy) > 0.1) and np.any(np.abs(dyaw) > 0.5)
+    try:
+        from sim_bridge.hexapod import simulator_settings
+    except ImportError:  # the archive's own checks above still ran
+        return
+    load_archive(path, expected_settings=simulator_settings(archive.metadata['dt'],
+                                                            archive.metadata['gait_duration']))

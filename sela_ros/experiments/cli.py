@@ -35,8 +35,8 @@ class Scenario:
 SCENARIOS = {
     'toy': Scenario('the toy simulation: a damaged point robot reaches (2, 2)',
                     'sela_ros.experiments.toy'),
-    # 'hexapod': Scenario('the damaged hexapod reaches (2, 2)',
-    #                     'sela_ros.experiments.hexapod'),
+    'hexapod': Scenario('the damaged hexapod reaches (2, 2)',
+                        'sela_ros.experiments.hexapod'),
 }
 
 
