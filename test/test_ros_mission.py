@@ -1,0 +1,182 @@
+"""Integration over DDS: the four nodes as processes, asserted on the messages they exchange."""
+import numpy as np
+import pytest
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from std_msgs.msg import Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+
+from sela_ros import conversions as conv
+from sela_ros.adapter_node import MISSION_STATUS
+from sela_ros.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
+from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+
+from ros_graph import CONFIG, Client, NodeProcesses
+
+pytestmark = [pytest.mark.dds, pytest.mark.slow]
+
+
+class Watcher:
+    """Collects what the nodes say: mission steps, verdicts, commands, outcomes, rewards."""
+
+    def __init__(self, client):
+        self.steps, self.finals, self.verdicts = [], [], []
+        self.commands, self.outcomes, self.rewards = [], [], []
+        node = client.node
+        node.create_subscription(DiagnosticArray, '/diagnostics', self._diag, STATE_QOS)
+        node.create_subscription(Float64MultiArray, '/hexapod/behavior',
+                                 lambda m: self.commands.append(conv.behavior_from_msg(m)[1]),
+                                 COMMAND_QOS)
+        node.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
+                                 lambda m: self.outcomes.append(conv.outcome_from_msg(m)),
+                                 OUTCOME_QOS)
+        node.create_subscription(Float64, '/sela/reward', lambda m: self.rewards.append(m.data),
+                                 COMMAND_QOS)
+        self.goal_pub = node.create_publisher(PoseStamped, '/goal_pose', LATCHED_QOS)
+
+    def _diag(self, msg):
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            if status.name == MISSION_STATUS and 'step' in values:
+                self.steps.append(values)
+            elif status.name == MISSION_STATUS and 'success' in values:
+                self.finals.append(values)
+            elif status.name == DETECTOR_STATUS:
+                self.verdicts.append((status.level, values))
+
+    def send_goal(self, x, y):
+        self.goal_pub.publish(conv.pose_stamped((x, y), frame_id='odom'))
+
+
+@pytest.fixture
+def graph(request):
+    overrides = getattr(request, 'param', {})
+    nodes = NodeProcesses(overrides)
+    client = Client()
+    yield nodes, client
+    client.close()
+    nodes.stop()
+
+
+def _config():
+    with open(CONFIG) as handle:
+        return yaml.safe_load(handle)
+
+
+def _in_process_mission(damage, seed, goal):
+    """The same mission, same configuration, run in process (no DDS)."""
+    from sela_ros.archive import default_archive_path, load_archive
+    from sela_ros.damage_detection import DetectorConfig
+    from sela_ros.mission import run_mission
+    from sela_ros.planner_node import grid_from_description
+    from sela_ros.planning import GridPlanner
+    from sim_bridge.environment import ObservedHexapod
+    from sim_bridge.hexapod import Hexapod
+
+    cfg = _config()
+    bridge = cfg['sim_bridge']['ros__parameters']
+    plan = cfg['planner']['ros__parameters']
+    adapter = cfg['sela_adapter']['ros__parameters']
+    detector = cfg['damage_detector']['ros__parameters']
+    env = ObservedHexapod(Hexapod(dt=bridge['sim.dt'], gait_duration=bridge['sim.gait_duration'],
+                                  damage=damage), bridge['observation.noise_std'], seed=seed)
+    grid = grid_from_description(plan['map.resolution'], plan['map.origin'], plan['map.width'],
+                                 plan['map.height'], plan.get('map.obstacles', []))
+    sela_config = {k: adapter[k] for k in ('gp.kernel.sigma', 'gp.noise',
+                                           'acquisition.ucb.alpha', 'goal.eps')}
+    det = DetectorConfig(**{k.split('.', 1)[1]: v for k, v in detector.items()
+                            if k.startswith('detection.')})
+    return run_mission(env, load_archive(default_archive_path()), goal, GridPlanner(grid),
+                       lookahead=plan['planner.lookahead'], sela_config=sela_config,
+                       detector_config=det, max_steps=adapter['max_steps'])
+
+
+@pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'remove:middle_right',
+                                                   'seed': 7}}], indirect=True)
+def test_damaged_mission_reaches_goal_with_the_in_process_decisions(graph):
+    nodes, client = graph
+    watcher = Watcher(client)
+    goal = (1.5, 1.0)
+    watcher.send_goal(*goal)
+    client.spin_until(lambda: watcher.finals, 400, 'the end of the mission')
+    final = watcher.finals[-1]
+    assert final['success'] == 'True', (final, nodes.logs())
+    # Each command pairs with exactly one outcome, and each step published one reward.
+    ids = [o.behavior_id for o in watcher.outcomes if o.behavior_id in set(watcher.commands)]
+    assert sorted(ids) == sorted(watcher.commands)
+    assert len(set(watcher.commands)) == len(watcher.commands) == len(watcher.steps)
+    assert len(watcher.rewards) == len(watcher.steps)
+    # The detector saw the damage and adaptation began.
+    assert any(level == DiagnosticStatus.ERROR for level, _ in watcher.verdicts)
+    assert any(s['adapting'] == 'True' for s in watcher.steps)
+    # The final observed pose is within goal.eps of the goal.
+    end = [float(v) for v in watcher.steps[-1]['end_pose'].split()]
+    assert np.hypot(end[0] - goal[0], end[1] - goal[1]) < 0.1
+    # Same seed, same decisions: the DDS mission took the in-process mission's gaits.
+    success, logic = _in_process_mission('remove:middle_right', 7, goal)
+    assert success
+    assert [int(s['behavior_index']) for s in watcher.steps] == \
+        [r.behavior_index for r in logic.records]
+
+
+def _set_param(client, node, name, value):
+    cli = client.node.create_client(SetParameters, f'/{node}/set_parameters')
+    request = SetParameters.Request()
+    request.parameters = [Parameter(name=name, value=ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value=value))]
+    return client.call(cli, request).results[0]
+
+
+def test_every_service_answers(graph):
+    nodes, client = graph
+    node = client.node
+    reset = client.call(node.create_client(Trigger, '/sim_bridge/reset'), Trigger.Request())
+    assert reset.success and 'start' in reset.message
+
+    plan_cli = node.create_client(GetPlan, '/planner/make_plan')
+    request = GetPlan.Request()
+    request.start = conv.pose_stamped((0.0, 0.0), frame_id='odom')
+    request.goal = conv.pose_stamped((1.0, 1.5), frame_id='odom')
+    path = conv.path_from_msg(client.call(plan_cli, request).plan)
+    assert len(path) >= 2
+    assert np.allclose(path[-1], [1.0, 1.5], atol=0.05) and np.allclose(path[0], 0, atol=0.05)
+    request.goal = conv.pose_stamped((50.0, 0.0), frame_id='odom')  # off the map
+    assert client.call(plan_cli, request).plan.poses == []
+
+    adapt = client.call(node.create_client(Trigger, '/sela_adapter/adapt'), Trigger.Request())
+    assert adapt.success and 'adaptation started' in adapt.message
+    adapt = client.call(node.create_client(Trigger, '/sela_adapter/adapt'), Trigger.Request())
+    assert adapt.success and 'restarted' in adapt.message
+
+    bad = _set_param(client, 'sim_bridge', 'damage', 'remove:middle_centre')
+    assert not bad.successful and 'middle_right' in bad.reason  # lists the valid legs
+    good = _set_param(client, 'sim_bridge', 'damage', 'shorten:front_left:0.5')
+    assert good.successful
+    assert all(nodes.alive().values()), nodes.logs()
+
+
+@pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'remove:middle_right', 'seed': 3},
+                                    'sela_adapter': {'max_steps': 400}}], indirect=True)
+def test_damage_changed_at_run_time_restarts_adaptation(graph):
+    nodes, client = graph
+    watcher = Watcher(client)
+    watcher.send_goal(2.5, 2.5)
+    client.spin_until(lambda: len(watcher.steps) >= 8, 300, 'eight steps')
+    assert any(s['adapting'] == 'True' for s in watcher.steps)
+    adaptations_before = int(watcher.steps[-1]['adaptations'])
+    detections_before = sum(level == DiagnosticStatus.ERROR for level, _ in watcher.verdicts)
+    change_step = len(watcher.steps)
+    result = _set_param(client, 'sim_bridge', 'damage', 'remove:middle_right,remove:front_left')
+    assert result.successful, result.reason
+
+    def restarted():
+        late = watcher.steps[change_step:]
+        return late and int(late[-1]['adaptations']) > adaptations_before
+    client.spin_until(restarted, 300, 'adaptation to restart after the damage changed')
+    detections_after = sum(level == DiagnosticStatus.ERROR for level, _ in watcher.verdicts)
+    assert detections_after > detections_before
+    assert all(nodes.alive().values()), nodes.logs()
