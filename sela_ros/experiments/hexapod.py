@@ -1,0 +1,286 @@
+"""The paper's hexapod experiment: SELA, the IT&E baselines and the oracle, N replicates.
+
+``sela-experiment hexapod --replicates 50 --damage remove:middle_right --goal 2,2 --out DIR``
+
+Every replicate runs every method on its own simulated hexapod (PyBullet, in the worker
+process), damaged from the start, standing at the origin. Within a replicate the robot is
+never reset: learning trials (IT&E) move it too, and a fallen robot is righted in place
+(the gait counts). Position observations carry Gaussian noise (``--noise-std``, default
+0.1 m: the paper's sigma^2 = 0.01); the goal is judged on the true pose (eps 0.1 m).
+
+Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measurements):
+
+* Reward selection layer: the straight line to the goal with a waypoint ``--lookahead``
+  metres ahead (default 0.4 m; the hexapod's gaits move 0-0.7 m per 3 s). Without
+  obstacles A* on a grid gives the same straight path.
+* ``ite_4dir`` learns four targets in generic-reward space (dx, dy, dyaw): forward
+  ``(max dx, 0, 0)``, backward ``(min dx, 0, 0)``, turn counter-clockwise
+  ``(0, 0, max dyaw)`` and turn clockwise ``(0, 0, min dyaw)`` of the intact archive,
+  15 M-BOA trials at most each; the task phase then picks, among the four learned
+  gaits, the one predicted to land nearest the waypoint.
+* The oracle knows every gait's outcome on the damaged robot from a standing start
+  (:func:`sim_bridge.experiment_env.oracle_table`, cached on disk) and never picks a gait
+  that falls there.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from sela_ros.baselines import METHODS, Problem
+from sela_ros.sela import SE2Motion, SELAConfig
+
+HEXAPOD_METHODS = ('sela', 'ite_uncertainty', 'ite_4dir', 'oracle')
+PAPER_NOISE_STD = 0.1  # the paper's sigma^2 = 0.01
+DEFAULT_LOOKAHEAD = 0.4
+ITE_MAX_ITERATIONS = 15  # the paper's N for the hexapod
+FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never chosen
+
+
+def _method_list(text):
+    names = [n.strip() for n in text.split(',') if n.strip()]
+    unknown = [n for n in names if n not in METHODS]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(
+            f'unknown method(s) {unknown}; choose from {", ".join(METHODS)}')
+    return names
+
+
+def _non_negative_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+    if not np.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f'expected a finite number >= 0, got {text!r}')
+    return value
+
+
+def _positive_float(text):
+    value = _non_negative_float(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
+    return value
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {value}')
+    return value
+
+
+def _goal(text):
+    parts = text.split(',')
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        values = []
+    if len(values) != 2 or not all(np.isfinite(values)):
+        raise argparse.ArgumentTypeError(f'expected the goal as X,Y (metres), got {text!r}')
+    return values
+
+
+def _damage(text):
+    from sim_bridge.damage import DamageSpecError, parse_damage
+
+    try:
+        return parse_damage(text).canonical()
+    except DamageSpecError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def _archive(text):
+    from sela_ros.archive import ArchiveError, load_archive
+    from sim_bridge.hexapod import simulator_settings
+
+    try:
+        archive = load_archive(text)
+    except ArchiveError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    if archive.generic_reward.shape[1] != 3:
+        raise argparse.ArgumentTypeError(f'{text}: generic rewards must be (dx, dy, dyaw)')
+    settings = archive.simulator_settings
+    try:
+        simulator_settings(settings['dt'], settings['gait_duration'])
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f'{text}: {err}') from None
+    return str(text)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``sela-experiment hexapod`` (the common ones are added by the CLI)."""
+    from sela_ros.archive import default_archive_path
+
+    parser.add_argument('--archive', type=_archive, default=str(default_archive_path()),
+                        help='behaviour-performance map (.npz; default: the shipped '
+                             'sela_ros/data/hexapod_archive.npz)')
+    parser.add_argument('--damage', type=_damage, default='remove:middle_right',
+                        help="damage spec, e.g. remove:middle_right (default, the paper's), "
+                             'shorten:front_left:0.5, block:rear_right.knee=0.2')
+    parser.add_argument('--goal', type=_goal, default=[2.0, 2.0],
+                        help='goal X,Y in metres from the start (default 2,2)')
+    parser.add_argument('--noise-std', type=_non_negative_float, default=PAPER_NOISE_STD,
+                        help='std (m) of the noise on observed positions (default '
+                             "%(default)s: the paper's sigma^2 = 0.01)")
+    parser.add_argument('--lookahead', type=_positive_float, default=DEFAULT_LOOKAHEAD,
+                        help='reward selection layer: waypoint distance along the straight '
+                             'path to the goal (m, default %(default)s)')
+    parser.add_argument('--methods', type=_method_list, default=list(HEXAPOD_METHODS),
+                        help='comma-separated methods (default: %(default)s; also '
+                             'random_babbling)')
+    parser.add_argument('--max-steps', type=_positive_int, default=100,
+                        help='task-step cap; a run that hits it fails (default %(default)s)')
+    parser.add_argument('--ite-iterations', type=_positive_int, default=ITE_MAX_ITERATIONS,
+                        help="IT&E trials (ite_uncertainty) and M-BOA trials per direction "
+                             "(ite_4dir) at most (default %(default)s, the paper's N)")
+    parser.add_argument('--oracle-cache', default=None,
+                        help='directory of cached oracle tables (default $SELA_CACHE_DIR or '
+                             '~/.cache/sela_ros/oracle)')
+
+
+def ite_targets(prior_gr) -> np.ndarray:
+    """Forward, backward, turn ccw, turn cw targets (dx, dy, dyaw) from the intact map."""
+    prior_gr = np.asarray(prior_gr, dtype=float)
+    return np.array([[prior_gr[:, 0].max(), 0.0, 0.0],
+                     [prior_gr[:, 0].min(), 0.0, 0.0],
+                     [0.0, 0.0, prior_gr[:, 2].max()],
+                     [0.0, 0.0, prior_gr[:, 2].min()]])
+
+
+def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
+                 ite_iterations=ITE_MAX_ITERATIONS) -> Problem:
+    return Problem(
+        candidates=archive.normalised_descriptors(),
+        prior_gr=archive.generic_reward,
+        motion=SE2Motion(),
+        goal=np.asarray(goal, dtype=float),
+        config=SELAConfig(planner_lookahead=lookahead),
+        max_steps=max_steps,
+        true_gr=true_gr,
+        ite_targets=ite_targets(archive.generic_reward),
+        ite_max_iterations=ite_iterations,
+        uncertainty_iterations=ite_iterations,
+        babbling_max_iterations=ite_iterations,
+    )
+
+
+# Per worker process: the archive and the oracle table, loaded once.
+_WORKER = {}
+
+
+def _worker_state(archive_path):
+    from sela_ros.archive import load_archive
+
+    if _WORKER.get('path') != archive_path:
+        _WORKER['path'] = archive_path
+        _WORKER['archive'] = load_archive(archive_path)
+    return _WORKER['archive']
+
+
+def run_method(job):
+    """One method on one replicate; returns a dict of plain numbers."""
+    (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
+     ite_iterations, oracle_gr) = job
+    from sim_bridge.experiment_env import HexapodEnvironment
+
+    archive = _worker_state(archive_path)
+    settings = archive.simulator_settings
+    env_seed, method_seed = seed_seq.spawn(2)
+    start = time.perf_counter()
+    with HexapodEnvironment(archive.params, damage, noise_std=noise_std,
+                            seed=np.random.default_rng(env_seed),
+                            dt=settings['dt'], gait_duration=settings['gait_duration']) as env:
+        problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
+                               ite_iterations=ite_iterations)
+        result = METHODS[name](env, problem, np.random.default_rng(method_seed))
+        final = env.true_pose()
+        return {'success': bool(result.success), 'steps': int(result.steps),
+                'learning_iterations': int(result.learning_iterations),
+                'falls': int(env.falls), 'sim_seconds': env.sim_seconds,
+                'wall_seconds': time.perf_counter() - start,
+                'final_distance': float(np.hypot(final[0] - goal[0], final[1] - goal[1]))}
+
+
+def run(args, progress=None) -> dict:
+    """Run the experiment described by ``args``; returns the results.json document."""
+    from sela_ros.archive import load_archive
+    from sim_bridge.experiment_env import archive_checksum, oracle_table
+
+    archive = load_archive(args.archive)
+    settings = archive.simulator_settings
+    oracle_gr = None
+    oracle_seconds = 0.0
+    oracle_falls = 0
+    if 'oracle' in args.methods:
+        start = time.perf_counter()
+        gr, fallen = oracle_table(archive.params, args.damage, workers=args.workers,
+                                  cache_dir=args.oracle_cache, dt=settings['dt'],
+                                  gait_duration=settings['gait_duration'])
+        oracle_seconds = time.perf_counter() - start
+        oracle_gr = np.where(fallen[:, None], FALLEN_GR, gr)
+        oracle_falls = int(fallen.sum())
+    seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
+    jobs = []
+    for seed in seeds:
+        for name, child in zip(args.methods, seed.spawn(len(args.methods))):
+            jobs.append((name, child, os.path.abspath(args.archive), args.damage, args.goal,
+                         args.noise_std, args.lookahead, args.max_steps,
+                         args.ite_iterations, oracle_gr))
+    per_rep = len(args.methods)
+    results = []
+    start = time.perf_counter()
+    if args.workers <= 1:
+        for i, job in enumerate(jobs):
+            results.append(run_method(job))
+            if progress and (i + 1) % per_rep == 0:
+                progress()
+    else:
+        # Jobs are (replicate, method) pairs in replicate order, so progress is in order too.
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            for i, r in enumerate(pool.map(run_method, jobs)):
+                results.append(r)
+                if progress and (i + 1) % per_rep == 0:
+                    progress()
+    wall = time.perf_counter() - start
+    methods = {}
+    timing = {}
+    for k, name in enumerate(args.methods):
+        runs = results[k::per_rep]
+        methods[name] = {
+            'success': [r['success'] for r in runs],
+            'steps': [r['steps'] for r in runs],
+            'learning_iterations': [r['learning_iterations'] for r in runs],
+            'falls': [r['falls'] for r in runs],
+            'final_distance': [round(r['final_distance'], 4) for r in runs],
+        }
+        timing[name] = {'sim_seconds': float(sum(r['sim_seconds'] for r in runs)),
+                        'wall_seconds': float(sum(r['wall_seconds'] for r in runs))}
+    summary = {name: {'successes': int(sum(m['success'])),
+                      'median_steps': float(np.median(m['steps'])),
+                      'median_learning_iterations': float(np.median(m['learning_iterations'])),
+                      'median_total': float(np.median(np.add(m['steps'],
+                                                             m['learning_iterations']))),
+                      'falls': int(sum(m['falls']))}
+               for name, m in methods.items()}
+    return {'scenario': 'hexapod', 'replicates': args.replicates, 'methods': methods,
+            'seed': args.seed,
+            'parameters': {'noise_std': args.noise_std, 'max_steps': args.max_steps,
+                           'damage': args.damage, 'goal': list(args.goal),
+                           'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,
+                           'planner': 'straight_line', 'goal_eps': SELAConfig().goal_eps,
+                           'ite_max_iterations': args.ite_iterations,
+                           'archive': os.path.abspath(args.archive),
+                           'archive_checksum': archive_checksum(archive.params),
+                           'num_behaviours': len(archive),
+                           'oracle_gaits_that_fall': oracle_falls},
+            'timing': {'wall_seconds': wall, 'workers': args.workers,
+                       'oracle_table_seconds': oracle_seconds, 'methods': timing},
+            'summary': summary}

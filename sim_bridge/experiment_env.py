@@ -1,0 +1,170 @@
+"""The damaged hexapod as a ``sela_ros.baselines.Environment``, and the oracle's table.
+
+ROS-free. :class:`HexapodEnvironment` lets the in-process experiment
+(``sela-experiment hexapod``) drive the PyBullet hexapod through the same runners as the
+toy world: ``execute(index)`` runs gait ``index`` of the archive from wherever the robot
+stands (never a reset inside a replicate), and position observations carry the paper's
+Gaussian noise (:class:`sim_bridge.environment.ObservedHexapod`).
+
+A fallen robot (see :meth:`Hexapod.is_fallen`) is righted in place after the gait that
+tipped it: the body is rebuilt standing at its x, y and yaw. The gait still counts as a
+step; :attr:`HexapodEnvironment.falls` counts them.
+
+:func:`oracle_table` evaluates every archive gait on the damaged robot from a standing
+start (``evaluate_gait``), in parallel, cached on disk per (archive checksum, damage,
+simulator settings): the damaged robot's true generic rewards that the oracle plans with.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from sim_bridge.damage import parse_damage
+from sim_bridge.environment import ObservedHexapod
+from sim_bridge.hexapod import Hexapod, evaluate_gait, simulator_settings
+
+ORACLE_FORMAT_VERSION = 1
+
+
+class HexapodEnvironment:
+    """The hexapod with ``damage``, executing gaits of an archive by index.
+
+    Args:
+        params: ``(M, 36)`` controller parameters of the archive's gaits.
+        damage: damage spec (``sim_bridge.damage`` grammar), applied from the start.
+        noise_std: standard deviation (m) of the noise on each observed coordinate.
+        seed: seed of the observation noise.
+        dt, gait_duration: simulator settings (must match the archive's).
+
+    Attributes:
+        falls: gaits after which the robot had fallen (and was righted) since ``reset``.
+        sim_seconds: wall-clock seconds spent inside the simulator (``execute``).
+    """
+
+    def __init__(self, params, damage='intact', noise_std=0.0, seed=0,
+                 dt=1.0 / 240.0, gait_duration=3.0):
+        params = np.asarray(params, dtype=float)
+        if params.ndim != 2 or params.shape[1] != 36:
+            raise ValueError(f'params must have shape (M, 36), got {params.shape}')
+        self.params = params
+        self.robot = Hexapod(dt=dt, gait_duration=gait_duration, damage=parse_damage(damage))
+        self.observed = ObservedHexapod(self.robot, noise_std=noise_std, seed=seed)
+        self.falls = 0
+        self.sim_seconds = 0.0
+
+    def close(self) -> None:
+        self.robot.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def reset(self) -> None:
+        """Standing at the origin, yaw 0, with the damage (start of a replicate)."""
+        self.observed.reset()
+        self.falls = 0
+
+    def observed_pose(self) -> np.ndarray:
+        return self.observed.observed_pose()
+
+    def true_pose(self) -> np.ndarray:
+        return self.observed.true_pose()
+
+    def execute(self, index: int) -> np.ndarray:
+        """Run gait ``index`` from the current state; return the observed pose after it."""
+        index = int(index)
+        if not 0 <= index < len(self.params):
+            raise IndexError(f'gait index {index} outside the archive (0..{len(self.params) - 1})')
+        start = time.perf_counter()
+        execution = self.observed.execute(self.params[index])
+        if execution.fallen:
+            self.falls += 1
+            # Right it where it lies: the observation after the gait stays valid.
+            self.robot.set_damage(self.robot.damage)
+        self.sim_seconds += time.perf_counter() - start
+        return self.observed.observed_pose()
+
+
+# --------------------------------------------------------------------------- oracle table
+
+
+def archive_checksum(params) -> str:
+    """SHA-256 of the archive's gait parameters (float64, C order)."""
+    data = np.ascontiguousarray(np.asarray(params, dtype=np.float64))
+    return hashlib.sha256(data.tobytes()).hexdigest()
+
+
+def default_cache_dir() -> Path:
+    """``$SELA_CACHE_DIR`` or ``~/.cache/sela_ros/oracle``."""
+    env = os.environ.get('SELA_CACHE_DIR')
+    return Path(env) if env else Path.home() / '.cache' / 'sela_ros' / 'oracle'
+
+
+def oracle_cache_path(params, damage, cache_dir=None, dt=1.0 / 240.0,
+                      gait_duration=3.0) -> Path:
+    settings = simulator_settings(dt, gait_duration)
+    key = '|'.join([archive_checksum(params), parse_damage(damage).canonical(),
+                    repr(settings['dt']), repr(settings['gait_duration']),
+                    settings['controller_version'], settings['model_version'],
+                    str(ORACLE_FORMAT_VERSION)])
+    digest = hashlib.sha256(key.encode()).hexdigest()[:24]
+    return Path(cache_dir or default_cache_dir()) / f'oracle_{digest}.npz'
+
+
+def _evaluate_chunk(job):
+    chunk, damage, dt, gait_duration = job
+    out = np.empty((len(chunk), 4))
+    for i, params in enumerate(chunk):
+        outcome = evaluate_gait(params, damage, dt, gait_duration)
+        out[i, :3] = outcome.generic_reward
+        out[i, 3] = float(outcome.fallen)
+    return out
+
+
+def compute_oracle_table(params, damage, workers=1, dt=1.0 / 240.0, gait_duration=3.0,
+                         chunk_size=25):
+    """``(generic_reward (M, 3), fallen (M,))`` of every gait on the damaged robot."""
+    params = np.asarray(params, dtype=float)
+    spec = parse_damage(damage).canonical()
+    chunks = [params[i:i + chunk_size] for i in range(0, len(params), chunk_size)]
+    jobs = [(c, spec, dt, gait_duration) for c in chunks]
+    if workers <= 1 or len(chunks) <= 1:
+        rows = [_evaluate_chunk(j) for j in jobs]
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            rows = list(pool.map(_evaluate_chunk, jobs))
+    table = np.concatenate(rows) if rows else np.zeros((0, 4))
+    return table[:, :3], table[:, 3].astype(bool)
+
+
+def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
+                 gait_duration=3.0):
+    """:func:`compute_oracle_table`, cached on disk (atomic write; a bad file is redone).
+
+    Returns:
+        ``(generic_reward (M, 3), fallen (M,))``.
+    """
+    path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration)
+    n = len(params)
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                gr, fallen = npz['generic_reward'], npz['fallen']
+            if gr.shape == (n, 3) and fallen.shape == (n,) and np.all(np.isfinite(gr)):
+                return gr.astype(float), fallen.astype(bool)
+        except Exception:  # corrupt or truncated: recompute below
+            pass
+    gr, fallen = compute_oracle_table(params, damage, workers, dt, gait_duration)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + f'.{os.getpid()}.tmp.npz')
+    np.savez(tmp, generic_reward=gr, fallen=fallen,
+             damage=np.array(parse_damage(damage).canonical()))
+    os.replace(tmp, path)
+    return gr, fallen
