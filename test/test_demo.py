@@ -1,0 +1,50 @@
+"""`sela-demo` (what `make demo` runs): the mission over DDS, its summary, plot and MCAP."""
+import json
+import subprocess
+
+import pytest
+
+from sela_ros.ros_env import executable
+
+pytestmark = [pytest.mark.dds, pytest.mark.slow]
+
+
+def test_demo_reaches_goal_and_writes_summary_plot_and_mcap(tmp_path, ros_env):
+    out = tmp_path / 'demo'
+    proc = subprocess.run(
+        [str(executable('sela-demo')), '--goal', '1.0,0.6', '--seed', '2', '--out', str(out),
+         '--quiet-nodes', '--timeout', '400'],
+        env=ros_env, capture_output=True, text=True, timeout=480)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert 'goal reached' in proc.stdout
+    step_lines = [line for line in proc.stdout.splitlines() if line.startswith('step ')]
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['success'] is True and summary['steps'] == len(step_lines) > 0
+    assert summary['final_distance_to_goal'] < 0.2  # true pose; observed one is within 0.1
+    png = (out / 'trajectory.png').read_bytes()
+    assert png[:8] == b'\x89PNG\r\n\x1a\n' and len(png) > 10_000
+
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    counts = {}
+    with open(out / 'mission.mcap', 'rb') as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        for _, channel, _, decoded in reader.iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == '/hexapod/odom':
+                assert decoded.header.frame_id == 'odom'
+                assert decoded.child_frame_id == 'base_link'
+    for topic in ('/hexapod/behavior', '/hexapod/behavior_outcome', '/sela/reward'):
+        assert counts.get(topic) == summary['steps'], (topic, counts)
+    for topic in ('/clock', '/hexapod/odom', '/goal_pose', '/planner/path', '/sela/target',
+                  '/diagnostics', '/planner/map', '/hexapod/joint_states'):
+        assert counts.get(topic, 0) > 0, (topic, counts)
+
+
+def test_demo_rejects_bad_arguments_with_usage(ros_env):
+    for args in (['--damage', 'remove:middle_centre'], ['--goal', '2;2']):
+        proc = subprocess.run([str(executable('sela-demo')), *args], env=ros_env,
+                              capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 2, proc.stderr
+        assert 'usage:' in proc.stderr and 'Traceback' not in proc.stderr
