@@ -14,8 +14,15 @@ Each step (a small state machine driven by a wall-clock timer, so no callback ev
 The mission starts trusting the intact map; ``/sela_adapter/adapt`` starts adaptation, or
 restarts it from scratch when it was running. Progress is published on ``/diagnostics``
 (name ``sela_adapter: mission``) once per step.
+
+What was learned (the GPs' observations) and the mission state are written atomically to
+``state_file`` after every step and read back at start-up (``resume``), so a killed adapter
+loses at most the step in flight; learning is lifelong across goals until
+``/sela_adapter/clear`` is called. A bad archive is reported and the node stays up: set a
+good one with ``ros2 param set /sela_adapter archive PATH``.
 """
 import math
+import os
 
 import numpy as np
 import rclpy
@@ -32,8 +39,11 @@ from std_srvs.srv import Trigger
 
 from sela_ros import conversions as conv
 from sela_ros.archive import ArchiveError, default_archive_path, load_archive
+from sela_ros.heartbeat import add_heartbeat
 from sela_ros.mission import MissionLogic, make_sela
+from sela_ros.persistence import STATE_FORMAT, StateError, atomic_write_json, load_state, set_aside
 from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+from sela_ros.sela import Decision
 
 DETECTOR_STATUS = 'damage_detector: prediction error'
 MISSION_STATUS = 'sela_adapter: mission'
@@ -53,16 +63,15 @@ class SelaAdapter(Node):
         self.declare_parameter('outcome_timeout', 30.0)
         self.declare_parameter('adapt_on_start', False)
         self.declare_parameter('frame_id', 'odom')
+        self.declare_parameter('state_file', os.path.join(
+            os.environ.get('ROS_HOME', os.path.expanduser('~/.ros')), 'sela_ros',
+            'sela_adapter_state.json'))
+        self.declare_parameter('resume', True)
 
         self.frame_id = self.get_parameter('frame_id').value
-        path = self.get_parameter('archive').value or str(default_archive_path())
-        self.archive = load_archive(path)  # a bad archive stops start-up with a clear error
-        self.sela = make_sela(self.archive,
-                              {k: self.get_parameter(k).value for k in SELA_KEYS})
-        self.logic = MissionLogic(self.sela, self.get_parameter('adapt_on_start').value)
         self.max_steps = int(self.get_parameter('max_steps').value)
-        self.get_logger().info(f'archive {path}: {len(self.archive)} behaviours')
-
+        self.state_file = self.get_parameter('state_file').value
+        self.archive = self.sela = self.logic = None
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.state = 'idle'
         self.goal = None
@@ -72,6 +81,7 @@ class SelaAdapter(Node):
         self.pending = {}
         self.targets = {}
         self.steps = 0
+        self.failed_steps = 0
         self.result = None
 
         self.behavior_pub = self.create_publisher(Float64MultiArray, '/hexapod/behavior',
@@ -90,8 +100,108 @@ class SelaAdapter(Node):
                                  STATE_QOS)
         self.plan_client = self.create_client(GetPlan, '/planner/make_plan')
         self.create_service(Trigger, '/sela_adapter/adapt', self.adapt_callback)
+        self.create_service(Trigger, '/sela_adapter/clear', self.clear_callback)
         self.add_on_set_parameters_callback(self.parameters_callback)
+        add_heartbeat(self)
+        path = self.get_parameter('archive').value or str(default_archive_path())
+        try:
+            self._use_archive(path)
+        except ArchiveError as exc:
+            self._error(f'no archive loaded: {exc}')
+        else:
+            if self.get_parameter('resume').value:
+                self._resume()
         self.timer = self.create_timer(0.01, self.tick, clock=self.wall)
+
+    # --- archive and persistence ---------------------------------------------------------
+
+    def _use_archive(self, path):
+        archive = load_archive(path)
+        self.archive = archive
+        self.sela = make_sela(archive, {k: self.get_parameter(k).value for k in SELA_KEYS})
+        if self.goal is not None:
+            self.sela.set_goal(self.goal)
+        self.logic = MissionLogic(self.sela, self.get_parameter('adapt_on_start').value)
+        self.get_logger().info(f'archive {path}: {len(archive)} behaviours')
+
+    def _resume(self):
+        try:
+            state = load_state(self.state_file, len(self.archive))
+        except StateError as exc:
+            kept = set_aside(self.state_file)
+            self._error(f'{exc}; kept it as {kept} and started afresh')
+            return
+        if state is None:
+            return
+        self.sela.load_state_dict(state['sela'])
+        m = state['mission']
+        self.logic.adapting = bool(m['adapting'])
+        self.logic.adaptations = int(m['adaptations'])
+        self.logic.last = None if m['last'] is None else (int(m['last'][0]),
+                                                          np.array(m['last'][1]))
+        self.next_id = int(m['next_id'])
+        self.steps = int(m['steps'])
+        self.pose = None if m['pose'] is None else np.array(m['pose'])
+        if m['goal'] is not None:
+            self.goal = np.array(m['goal'])
+            self.sela.set_goal(self.goal)
+        pending = m.get('pending')
+        if pending is not None and m['state'] in ('executing', 'verdict'):
+            decision = Decision(index=int(pending['index']), waypoint=np.array(
+                pending['waypoint']), predicted_gr=np.array(pending['predicted_gr']),
+                predicted_pose=np.array(pending['predicted_pose']),
+                reward=float(pending['reward']), sigma=float(pending['sigma']))
+            self.pending = {'id': int(pending['id']), 'pose': np.array(pending['pose']),
+                            'waypoint': decision.waypoint, 'decision': decision,
+                            'deadline': self.wall.now().nanoseconds * 1e-9
+                            + float(self.get_parameter('outcome_timeout').value)}
+            # The outcome may already be waiting (outcomes are latched by sim_bridge).
+            self.state = 'executing' if m['state'] == 'executing' else 'ready'
+            if m['state'] == 'verdict':
+                self.pending = {}
+        elif self.goal is not None and m['state'] not in ('done', 'idle'):
+            self.state = 'ready'
+        self.get_logger().warn(
+            f'resumed from {self.state_file}: {len(self.sela.observations[0])} observation(s), '
+            f"step {self.steps}, {'adapting' if self.logic.adapting else 'trusting the map'}")
+
+    def _save(self):
+        if self.logic is None:
+            return
+        pending = None
+        if self.pending.get('decision') is not None and 'id' in self.pending:
+            d = self.pending['decision']
+            pending = {'id': self.pending['id'], 'index': int(d.index),
+                       'pose': np.asarray(self.pending['pose'], float).tolist(),
+                       'waypoint': np.asarray(d.waypoint, float).tolist(),
+                       'predicted_gr': d.predicted_gr.tolist(),
+                       'predicted_pose': d.predicted_pose.tolist(), 'reward': d.reward,
+                       'sigma': d.sigma}
+        last = self.logic.last
+        state = {
+            'format': STATE_FORMAT, 'archive_size': len(self.archive),
+            'sela': self.sela.state_dict(),
+            'mission': {'state': self.state, 'steps': self.steps,
+                        'goal': None if self.goal is None else self.goal.tolist(),
+                        'pose': None if self.pose is None else np.asarray(self.pose).tolist(),
+                        'adapting': self.logic.adapting,
+                        'adaptations': self.logic.adaptations,
+                        'last': None if last is None else [int(last[0]), last[1].tolist()],
+                        'next_id': self.next_id, 'pending': pending}}
+        try:
+            atomic_write_json(self.state_file, state)
+        except (OSError, ValueError) as exc:
+            self.get_logger().error(f'could not save the learned state to {self.state_file}: '
+                                    f'{exc}')
+
+    def _error(self, message):
+        self.get_logger().error(message)
+        status = DiagnosticStatus(level=DiagnosticStatus.ERROR, name=MISSION_STATUS,
+                                  message=message, hardware_id='sela_ros')
+        msg = DiagnosticArray()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.status = [status]
+        self.diag_pub.publish(msg)
 
     # --- inputs --------------------------------------------------------------------------
 
@@ -101,12 +211,17 @@ class SelaAdapter(Node):
         except conv.MessageError as exc:
             self.get_logger().error(f'goal rejected: {exc}')
             return
+        if (self.goal is not None and np.array_equal(goal, self.goal)
+                and self.state not in ('idle', 'done')):
+            return  # the latched goal again (e.g. after a restart): the mission goes on
         self.goal = goal
-        self.sela.set_goal(goal)
+        if self.sela is not None:
+            self.sela.set_goal(goal)
         self.steps = 0
         self.result = None
         if self.state in ('idle', 'done'):
             self.state = 'ready'
+        self._save()
         self.get_logger().info(f'new goal ({goal[0]:.2f}, {goal[1]:.2f})')
         self.tick()
 
@@ -132,8 +247,9 @@ class SelaAdapter(Node):
             self.get_logger().error(f'ignored outcome: {exc}')
             return
         if self.state != 'executing' or outcome.behavior_id != self.pending.get('id'):
-            self.get_logger().debug(f'outcome {outcome.behavior_id} pairs with no command of '
-                                    'this adapter: ignored')
+            if outcome.behavior_id >= self.next_id:
+                self.get_logger().warn(f'ignored outcome {outcome.behavior_id}: it pairs with '
+                                       'no command of this adapter')
             return
         self._on_outcome(outcome)
 
@@ -149,12 +265,32 @@ class SelaAdapter(Node):
                 self.tick()
 
     def adapt_callback(self, request, response):
+        if self.logic is None:
+            response.success = False
+            response.message = 'no archive loaded: set the archive parameter first'
+            return response
         restarting = self.logic.adapting
         self.logic.adapt()
         response.success = True
         response.message = ('adaptation restarted from scratch' if restarting
                             else 'adaptation started') + \
             f' ({len(self.sela.observations[0])} observation(s))'
+        self.get_logger().warn(response.message)
+        self._save()
+        return response
+
+    def clear_callback(self, request, response):
+        if self.logic is None:
+            response.success = False
+            response.message = 'no archive loaded: nothing to clear'
+            return response
+        forgotten = len(self.sela.observations[0])
+        self.sela.reset_learning()
+        self.logic.adapting = bool(self.get_parameter('adapt_on_start').value)
+        self.logic.last = None
+        self._save()
+        response.success = True
+        response.message = f'forgot {forgotten} observation(s): back to the intact map'
         self.get_logger().warn(response.message)
         return response
 
@@ -169,7 +305,16 @@ class SelaAdapter(Node):
                     return SetParametersResult(successful=False,
                                                reason='max_steps must be an integer > 0')
                 self.max_steps = param.value
-            elif param.name in SELA_KEYS or param.name in ('archive', 'adapt_on_start'):
+            elif param.name == 'archive':
+                if self.state not in ('idle', 'done', 'ready'):
+                    return SetParametersResult(successful=False,
+                                               reason='archive cannot change mid-step')
+                try:
+                    self._use_archive(param.value or str(default_archive_path()))
+                except ArchiveError as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
+            elif param.name in SELA_KEYS or param.name in ('adapt_on_start', 'state_file',
+                                                           'resume'):
                 return SetParametersResult(
                     successful=False, reason=f'{param.name} can only be set at start-up')
         return SetParametersResult(successful=True)
@@ -193,7 +338,7 @@ class SelaAdapter(Node):
 
     def _start_step(self, now):
         pose = self.pose if self.pose is not None else self.odom_pose
-        if pose is None or self.goal is None:
+        if pose is None or self.goal is None or self.logic is None:
             return
         if self.sela.goal_reached(pose):
             return self._finish(True, pose)
@@ -237,6 +382,7 @@ class SelaAdapter(Node):
         self.prediction_pub.publish(conv.prediction_to_msg(
             self.pending['id'], decision.predicted_gr, self.logic.prediction_sigma(decision)))
         self._send(now)
+        self._save()
 
     def _send(self, now):
         params = self.archive.params[self.pending['decision'].index]
@@ -249,12 +395,16 @@ class SelaAdapter(Node):
         record = self.logic.outcome(decision, self.pending['pose'], outcome.generic_reward,
                                     fallen=outcome.fallen)
         self.pose = outcome.end_pose
+        if outcome.fallen:
+            self.failed_steps += 1
+            self._error(f'step {self.steps} failed: the robot fell (sim_bridge righted it)')
         reward = -float(np.linalg.norm(self.pending['waypoint'] - outcome.end_pose[:2]))
         self.reward_pub.publish(Float64(data=reward))
         self._publish_status(DiagnosticStatus.OK, 'step', record, reward)
         now = self.wall.now().nanoseconds * 1e-9
         self.pending['deadline'] = now + float(self.get_parameter('detector_timeout').value)
         self.state = 'verdict'
+        self._save()
 
     def _finish(self, success, pose):
         self.state = 'done'
@@ -264,13 +414,15 @@ class SelaAdapter(Node):
         self.get_logger().info(f'{message} after {self.steps} steps, pose '
                                f'({pose[0]:.2f}, {pose[1]:.2f})')
         self._publish_status(level, message, None, None)
+        self._save()
 
     def _publish_status(self, level, message, record, reward):
         status = DiagnosticStatus(level=level, name=MISSION_STATUS, message=message,
                                   hardware_id='sela_ros')
         values = {'state': self.state, 'steps': self.steps,
                   'adapting': self.logic.adapting, 'adaptations': self.logic.adaptations,
-                  'observations': len(self.sela.observations[0])}
+                  'observations': len(self.sela.observations[0]),
+                  'failed_steps': self.failed_steps}
         if record is not None:
             values.update(step=record.step, behavior_id=self.pending['id'],
                           behavior_index=record.behavior_index,
@@ -297,9 +449,6 @@ def main(args=None):
     try:
         node = SelaAdapter()
         rclpy.spin(node)
-    except ArchiveError as exc:
-        rclpy.logging.get_logger('sela_adapter').fatal(str(exc))
-        raise SystemExit(2) from exc
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

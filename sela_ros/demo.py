@@ -47,6 +47,9 @@ def build_parser():
                         help='wall-clock seconds before giving up (default: %(default)s)')
     parser.add_argument('--domain-id', type=int, default=None,
                         help='ROS_DOMAIN_ID (default: inherited, else 0)')
+    parser.add_argument('--keep-learning', action='store_true',
+                        help="resume from what the previous demo in --out learned (the "
+                        "adapter's state file) instead of starting from the intact map")
     parser.add_argument('--quiet-nodes', action='store_true',
                         help="send the nodes' own logs to files in --out only")
     return parser
@@ -83,8 +86,13 @@ def main(argv=None):
             if name == 'sim_bridge':
                 cmd += ['-p', f'damage:={damage}', '-p', f'seed:={args.seed}',
                         '-p', f'sim.gui:={str(args.gui).lower()}']
-            if name == 'sela_adapter' and args.archive:
-                cmd += ['-p', f'archive:={args.archive}']
+            if name == 'sela_adapter':
+                state_file = out / 'sela_adapter_state.json'
+                if not args.keep_learning and state_file.exists():
+                    state_file.unlink()
+                cmd += ['-p', f'state_file:={state_file.resolve()}']
+                if args.archive:
+                    cmd += ['-p', f'archive:={args.archive}']
             logs[name] = open(out / f'{name}.log', 'w')  # noqa: SIM115
             procs[name] = subprocess.Popen(
                 cmd, env=env, stdout=logs[name] if args.quiet_nodes else None,

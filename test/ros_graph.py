@@ -27,7 +27,11 @@ class NodeProcesses:
         self.env = ros_environment(domain_id=int(os.environ['ROS_DOMAIN_ID']))
         self.logdir = Path(tempfile.mkdtemp(prefix='sela_nodes_'))
         self.procs = {}
-        self.overrides = overrides or {}
+        self.overrides = {k: dict(v) for k, v in (overrides or {}).items()}
+        # Each graph learns into its own state file: no test resumes another's learning.
+        self.state_file = self.logdir / 'sela_adapter_state.json'
+        self.overrides.setdefault('sela_adapter', {}).setdefault('state_file',
+                                                                 str(self.state_file))
         for name in names:
             self.start(name)
 

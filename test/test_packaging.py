@@ -27,7 +27,8 @@ def test_ament_index_knows_sela_ros(prefix):
     from ament_index_python.packages import get_packages_with_prefixes
 
     assert 'sela_ros' in get_packages_with_prefixes()
-    assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / 'sela_ros').is_file()
+    index = prefix / 'share' / 'ament_index' / 'resource_index' / 'packages'
+    assert (index / 'sela_ros').is_file()
 
 
 def test_every_console_script_is_executable_under_lib_sela_ros(prefix):
