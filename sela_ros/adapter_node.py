@@ -60,17 +60,17 @@ class SelaAdapter(Node):
         self.declare_parameter('goal.eps', 0.1)
         self.declare_parameter('max_steps', 100)
         self.declare_parameter('detector_timeout', 2.0)
-        self.declare_parameter('outcome_timeout', 30.0)
+        self.declare_parameter('outcome_timeout', 10.0)
         self.declare_parameter('adapt_on_start', False)
         self.declare_parameter('frame_id', 'odom')
-        self.declare_parameter('state_file', os.path.join(
-            os.environ.get('ROS_HOME', os.path.expanduser('~/.ros')), 'sela_ros',
-            'sela_adapter_state.json'))
+        self.declare_parameter('state_file', '')
         self.declare_parameter('resume', True)
 
         self.frame_id = self.get_parameter('frame_id').value
         self.max_steps = int(self.get_parameter('max_steps').value)
-        self.state_file = self.get_parameter('state_file').value
+        self.state_file = self.get_parameter('state_file').value or os.path.join(
+            os.environ.get('ROS_HOME', os.path.expanduser('~/.ros')), 'sela_ros',
+            'sela_adapter_state.json')
         self.archive = self.sela = self.logic = None
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.state = 'idle'

@@ -17,6 +17,7 @@ from std_srvs.srv import Trigger
 
 from sela_ros import conversions as conv
 from sela_ros.damage_detection import DamageDetector, DetectorConfig
+from sela_ros.heartbeat import SilenceWatch, add_heartbeat
 from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 
 STATUS_NAME = 'damage_detector: prediction error'
@@ -32,6 +33,8 @@ class DamageDetectorNode(Node):
         self.declare_parameter('detection.window', defaults.window)
         self.declare_parameter('detection.cooldown', defaults.cooldown)
         self.declare_parameter('detection.sigma_scale', defaults.sigma_scale)
+        self.declare_parameter('heartbeat.timeout', 5.0)
+        self.declare_parameter('heartbeat.nodes', ['sim_bridge', 'planner', 'sela_adapter'])
         self.detector = DamageDetector(self._config_from({}))
         self.predictions = {}
         self.waiting = []  # verdicts waiting for the adapter's answer: (future, deadline, msg)
@@ -45,7 +48,38 @@ class DamageDetectorNode(Node):
         self.adapt_client = self.create_client(Trigger, '/sela_adapter/adapt')
         self.add_on_set_parameters_callback(self.parameters_callback)
         self.create_timer(0.01, self.flush_verdicts, clock=self.wall)
+        # Watch the other nodes' heartbeats: a silent node is reported on /diagnostics.
+        self.watch = SilenceWatch(self.get_parameter('heartbeat.nodes').value,
+                                  self.get_parameter('heartbeat.timeout').value)
+        self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback,
+                                 STATE_QOS)
+        self.create_timer(0.5, self.check_heartbeats, clock=self.wall)
+        add_heartbeat(self)
         self.get_logger().info(f'threshold {self.detector.config.threshold} m')
+
+    def diagnostics_callback(self, msg):
+        for status in msg.status:
+            self.watch.heard(status.name)
+
+    def check_heartbeats(self):
+        newly_silent, back = self.watch.check()
+        statuses = []
+        for node in newly_silent:
+            message = (f'{node} silent for {self.watch.silence(node):.1f} s '
+                       f'(heartbeat.timeout {self.watch.timeout} s)')
+            self.get_logger().error(message)
+            statuses.append(DiagnosticStatus(level=DiagnosticStatus.ERROR,
+                                             name=f'{node}: liveness', message=message,
+                                             hardware_id='sela_ros'))
+        for node in back:
+            self.get_logger().info(f'{node} is back')
+            statuses.append(DiagnosticStatus(level=DiagnosticStatus.OK, name=f'{node}: liveness',
+                                             message='heartbeat back', hardware_id='sela_ros'))
+        if statuses:
+            msg = DiagnosticArray()
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.status = statuses
+            self.diag_pub.publish(msg)
 
     def _config_from(self, overrides):
         values = {name: self.get_parameter(f'detection.{name}').value
@@ -54,6 +88,12 @@ class DamageDetectorNode(Node):
         return DetectorConfig(**values)
 
     def parameters_callback(self, params):
+        for p in params:
+            if p.name == 'heartbeat.timeout':
+                if not (isinstance(p.value, (int, float)) and p.value > 0):
+                    return SetParametersResult(successful=False,
+                                               reason='heartbeat.timeout must be > 0 (s)')
+                self.watch.timeout = float(p.value)
         overrides = {p.name.split('.', 1)[1]: p.value for p in params
                      if p.name.startswith('detection.')}
         if overrides:

@@ -24,6 +24,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from sela_ros import conversions as conv
+from sela_ros.heartbeat import add_heartbeat
 from sela_ros.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
 from sela_ros.qos import LATCHED_QOS, STATE_QOS
 
@@ -104,6 +105,7 @@ class PlannerNode(Node):
         self.create_subscription(PoseStamped, '/goal_pose', self.goal_callback, LATCHED_QOS)
         self.create_service(GetPlan, '/planner/make_plan', self.make_plan_callback)
         self.add_on_set_parameters_callback(self.parameters_callback)
+        add_heartbeat(self)
         self.map_pub.publish(conv.occupancy_grid_to_msg(
             self.grid.occupied, self.grid.resolution, self.grid.origin, frame_id=self.frame_id))
         self.get_logger().info(f'map {self.grid.width}x{self.grid.height} cells of '

@@ -24,6 +24,7 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from sela_ros import conversions as conv
+from sela_ros.heartbeat import add_heartbeat
 from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 from sim_bridge.damage import DamageSpecError, parse_damage
 from sim_bridge.environment import ObservedHexapod
@@ -73,6 +74,7 @@ class SimBridge(Node):
         self.create_service(Trigger, '/sim_bridge/reset', self.reset_callback,
                             callback_group=ReentrantCallbackGroup())
         self.add_on_set_parameters_callback(self.parameters_callback)
+        add_heartbeat(self)
 
         self._stop = threading.Event()
         self._worker = threading.Thread(target=self._work_loop, name='gait_worker', daemon=True)
@@ -91,7 +93,14 @@ class SimBridge(Node):
         try:
             params, behavior_id = conv.behavior_from_msg(msg)
         except conv.MessageError as exc:
-            self.get_logger().error(f'rejected command on /hexapod/behavior: {exc}')
+            message = f'rejected command on /hexapod/behavior: {exc}'
+            self.get_logger().error(message)
+            status = DiagnosticStatus(level=DiagnosticStatus.ERROR, name='sim_bridge: command',
+                                      message=message, hardware_id='hexapod')
+            out = DiagnosticArray()
+            out.header.stamp = conv.time_to_msg(self.env.robot.sim_time)
+            out.status = [status]
+            self.diag_pub.publish(out)
             return
         if behavior_id is None:
             behavior_id = self._next_auto_id

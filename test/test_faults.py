@@ -1,0 +1,187 @@
+"""Reliability over DDS: bad input never crashes a node; killed nodes come back; nothing
+learned is lost."""
+import json
+import math
+import time
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from std_srvs.srv import Trigger
+
+from ros_graph import Client, NodeProcesses
+from sela_ros import conversions as conv
+from sela_ros.adapter_node import MISSION_STATUS
+from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+
+pytestmark = [pytest.mark.dds, pytest.mark.slow]
+
+
+class Diagnostics:
+    def __init__(self, client):
+        self.statuses = []
+        client.node.create_subscription(DiagnosticArray, '/diagnostics',
+                                        lambda m: self.statuses.extend(m.status), STATE_QOS)
+
+    def steps(self):
+        return [{kv.key: kv.value for kv in s.values} for s in self.statuses
+                if s.name == MISSION_STATUS and any(kv.key == 'step' for kv in s.values)]
+
+    def finished(self):
+        return [{kv.key: kv.value for kv in s.values} for s in self.statuses
+                if s.name == MISSION_STATUS and any(kv.key == 'success' for kv in s.values)]
+
+    def errors(self, name_part):
+        return [s.message for s in self.statuses
+                if name_part in s.name and s.level == DiagnosticStatus.ERROR]
+
+
+def _set(client, node, name, value, kind):
+    cli = client.node.create_client(SetParameters, f'/{node}/set_parameters')
+    field = {ParameterType.PARAMETER_STRING: 'string_value',
+             ParameterType.PARAMETER_DOUBLE: 'double_value',
+             ParameterType.PARAMETER_INTEGER: 'integer_value'}[kind]
+    value_msg = ParameterValue(type=kind, **{field: value})
+    request = SetParameters.Request(parameters=[Parameter(name=name, value=value_msg)])
+    return client.call(cli, request).results[0]
+
+
+@pytest.fixture
+def graph(request):
+    nodes = NodeProcesses(getattr(request, 'param', {}))
+    client = Client()
+    yield nodes, client
+    client.close()
+    nodes.stop()
+
+
+def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
+    nodes, client = graph
+    diag = Diagnostics(client)
+    node = client.node
+    behavior_pub = node.create_publisher(Float64MultiArray, '/hexapod/behavior', COMMAND_QOS)
+    outcome_pub = node.create_publisher(Float64MultiArray, '/hexapod/behavior_outcome',
+                                        OUTCOME_QOS)
+    goal_pub = node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+    outcomes = []
+    node.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
+                             lambda m: outcomes.append(m), OUTCOME_QOS)
+    client.spin_until(lambda: behavior_pub.get_subscription_count() > 0, 30, 'sim_bridge')
+
+    # Behaviour commands: wrong length, NaN, infinity, out of [0, 1], bad id label.
+    bad_id = Float64MultiArray(data=[0.5] * 36)
+    bad_id.layout.dim = [MultiArrayDimension(label='behavior_id=x', size=36, stride=36)]
+    for msg in (Float64MultiArray(data=[0.5] * 35), Float64MultiArray(data=[math.nan] * 36),
+                Float64MultiArray(data=[math.inf] + [0.5] * 35),
+                Float64MultiArray(data=[1.5] + [0.5] * 35), bad_id):
+        behavior_pub.publish(msg)
+    client.spin_until(lambda: len(diag.errors('sim_bridge: command')) >= 5, 30,
+                      'five rejected commands')
+    errors = diag.errors('sim_bridge: command')
+    assert any('expected 36 values, got 35' in e for e in errors)
+    assert any('expected finite numbers' in e for e in errors)
+    assert any('expected every parameter in [0, 1]' in e for e in errors)
+    assert any('not an integer' in e for e in errors)
+    # ... and a good one still works afterwards, answered by exactly one outcome.
+    behavior_pub.publish(conv.behavior_to_msg(np.full(36, 0.5), 424242))
+    client.spin_until(lambda: any(conv.outcome_from_msg(m).behavior_id == 424242
+                                  for m in outcomes), 60, 'the outcome of a good command')
+
+    # Goals: off the map, in another frame, NaN.
+    goal_pub.publish(conv.pose_stamped((40.0, 0.0), frame_id='odom'))
+    client.spin_until(lambda: any('off the map' in e for e in diag.errors('planner')), 30,
+                      'goal off the map reported')
+    goal_pub.publish(conv.pose_stamped((1.0, 0.0), frame_id='map'))
+    client.spin_until(lambda: any("frame 'map'" in e for e in diag.errors('planner')), 30,
+                      'goal in another frame reported')
+    goal_pub.publish(conv.pose_stamped((math.nan, 0.0), frame_id='odom'))
+    client.spin_until(lambda: any('finite' in e for e in diag.errors('planner')), 30,
+                      'NaN goal reported')
+
+    # An outcome that pairs with no command, and a malformed outcome.
+    outcome_pub.publish(conv.outcome_to_msg(conv.BehaviorOutcome(
+        99_999_999, np.zeros(3), np.zeros(3), np.zeros(3))))
+    outcome_pub.publish(Float64MultiArray(data=[1.0, 2.0]))
+
+    # Parameters: invalid values are rejected with a reason, the old value kept.
+    r = _set(client, 'sim_bridge', 'damage', 'remove:leg7', ParameterType.PARAMETER_STRING)
+    assert not r.successful and 'valid' in r.reason
+    r = _set(client, 'planner', 'planner.lookahead', -1.0, ParameterType.PARAMETER_DOUBLE)
+    assert not r.successful and 'lookahead' in r.reason
+    r = _set(client, 'damage_detector', 'detection.window', 0,
+             ParameterType.PARAMETER_INTEGER)
+    assert not r.successful and 'detection.window' in r.reason
+    r = _set(client, 'sela_adapter', 'max_steps', -3, ParameterType.PARAMETER_INTEGER)
+    assert not r.successful and 'max_steps' in r.reason
+    # A truncated archive file is refused, and the adapter keeps the one it had.
+    broken = tmp_path / 'broken.npz'
+    broken.write_bytes(b'PK\x03\x04 truncated')
+    r = _set(client, 'sela_adapter', 'archive', str(broken), ParameterType.PARAMETER_STRING)
+    assert not r.successful and 'broken.npz' in r.reason
+    adapt = client.call(node.create_client(Trigger, '/sela_adapter/adapt'), Trigger.Request())
+    assert adapt.success
+    time.sleep(1.0)
+    assert all(nodes.alive().values()), nodes.logs()
+
+
+def test_adapter_with_corrupt_archive_stays_up_and_says_why(tmp_path):
+    corrupt = tmp_path / 'corrupt.npz'
+    corrupt.write_bytes(b'not an archive at all')
+    nodes = NodeProcesses({'sela_adapter': {'archive': str(corrupt)}}, names=('sela_adapter',))
+    client = Client()
+    try:
+        answer = client.call(client.node.create_client(Trigger, '/sela_adapter/adapt'),
+                             Trigger.Request(), timeout=30)
+        assert not answer.success and 'no archive loaded' in answer.message
+        assert nodes.alive() == {'sela_adapter': True}
+        assert 'corrupt.npz' in nodes.logs()['sela_adapter.log']
+    finally:
+        client.close()
+        nodes.stop()
+
+
+def _observations(state_file):
+    state = json.loads(state_file.read_text())
+    return state['sela']['indices'], state['sela']['generic_rewards']
+
+
+@pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'remove:middle_right', 'seed': 11},
+                                    'sela_adapter': {'outcome_timeout': 3.0},
+                                    'damage_detector': {'heartbeat.timeout': 2.0}}],
+                         indirect=True)
+def test_killed_nodes_come_back_and_the_mission_completes(graph):
+    nodes, client = graph
+    diag = Diagnostics(client)
+    goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+    goal_pub.publish(conv.pose_stamped((1.6, 1.2), frame_id='odom'))
+    client.spin_until(lambda: len(diag.steps()) >= 5, 200, 'five steps')
+
+    # SIGKILL the adapter mid-mission: what it learned is on disk and comes back.
+    nodes.kill('sela_adapter')
+    before = _observations(nodes.state_file)
+    assert len(before[0]) >= 3
+    nodes.start('sela_adapter')
+    steps_at_restart = len(diag.steps())
+    client.spin_until(lambda: len(diag.steps()) >= steps_at_restart + 2, 200,
+                      'two steps after the adapter restarted')
+    after = _observations(nodes.state_file)
+    assert after[0][:len(before[0])] == before[0]
+    assert after[1][:len(before[1])] == before[1]
+
+    # SIGKILL the planner: reported silent, then back, and the mission goes on.
+    nodes.kill('planner')
+    client.spin_until(lambda: any('planner silent' in e for e in diag.errors('liveness')), 30,
+                      'the silent planner reported')
+    nodes.start('planner')
+
+    # SIGKILL the simulator: a new one starts, the adapter resends the lost command.
+    steps_now = len(diag.steps())
+    client.spin_until(lambda: len(diag.steps()) >= steps_now + 1, 200, 'one more step')
+    nodes.kill('sim_bridge')
+    nodes.start('sim_bridge')
+    client.spin_until(lambda: diag.finished(), 400, 'the end of the mission')
+    assert diag.finished()[-1]['success'] == 'True', nodes.logs()
+    assert all(nodes.alive().values()), nodes.logs()
