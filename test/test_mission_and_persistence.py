@@ -1,0 +1,129 @@
+"""Mission logic, persistence, heartbeat bookkeeping and the planner's map description."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from sela_ros.heartbeat import SilenceWatch
+from sela_ros.mission import MissionLogic, as_seen_in_odometry
+from sela_ros.persistence import StateError, atomic_write_json, load_state, set_aside
+from sela_ros.planner_node import grid_from_description, load_map_file
+from sela_ros.sela import SE2Motion, SELA, SELAConfig
+
+
+def _sela():
+    rng = np.random.default_rng(0)
+    candidates = rng.random((50, 2))
+    prior = np.column_stack([candidates * 0.6 - 0.3, np.zeros(50)])
+    return SELA(candidates, prior, SE2Motion(), goal=(1.0, 0.0),
+                config=SELAConfig(planner_lookahead=1e9))
+
+
+def test_mission_trusts_the_map_until_adapt_then_learns_and_restarts():
+    logic = MissionLogic(_sela())
+    pose = np.zeros(3)
+    d1 = logic.decide(pose, np.array([0.3, 0.0]))
+    assert logic.prediction_sigma(d1) == 0.0  # the intact map is trusted
+    logic.outcome(d1, pose, [0.05, 0.1, 0.2])
+    assert len(logic.sela.observations[0]) == 0  # not adapting: nothing learned
+    logic.adapt()
+    assert logic.adapting and logic.records[-1].detected
+    assert logic.sela.observations[0].tolist() == [d1.index]  # learns the triggering step
+    d2 = logic.decide(pose, np.array([0.3, 0.0]))
+    logic.outcome(d2, pose, [0.1, 0.0, 0.0])
+    assert len(logic.sela.observations[0]) == 2
+    logic.adapt()  # a second detection: restart from scratch with the latest outcome
+    assert logic.sela.observations[0].tolist() == [d2.index] and logic.adaptations == 2
+
+
+def test_odometry_round_trip_of_the_first_pose():
+    pose = as_seen_in_odometry([0.1, -0.2, 0.3])
+    assert pose[0] == 0.1 and pose[1] == -0.2 and abs(pose[2] - 0.3) < 1e-12
+
+
+def test_state_file_round_trip_and_bad_files(tmp_path):
+    path = tmp_path / 'state.json'
+    assert load_state(path, 10) is None
+    state = {'format': 1, 'archive_size': 10, 'sela': {'indices': [1]}, 'mission': {}}
+    atomic_write_json(path, state)
+    assert load_state(path, 10) == state
+    with pytest.raises(StateError, match='archive of 10 behaviours, the loaded archive has 11'):
+        load_state(path, 11)
+    path.write_text('{"format": 1, "archive_')
+    with pytest.raises(StateError, match='unreadable'):
+        load_state(path, 10)
+    kept = set_aside(path)
+    assert kept.exists() and not path.exists()
+    with pytest.raises(ValueError):
+        atomic_write_json(path, {'x': float('nan')})  # never a file JSON cannot read back
+    assert not path.exists()
+
+
+def test_atomic_write_survives_sigkill(tmp_path):
+    """A writer killed mid-loop leaves a complete file: the last one it wrote."""
+    path = tmp_path / 'state.json'
+    code = ('import sys\nfrom sela_ros.persistence import atomic_write_json\ni = 0\n'
+            'while True:\n    atomic_write_json(sys.argv[1], {"i": i, "pad": "x" * 200000})\n'
+            '    i += 1\n')
+    proc = subprocess.Popen([sys.executable, '-c', code, str(path)],
+                            env=dict(os.environ, PYTHONPATH=os.getcwd()))
+    try:
+        deadline = time.monotonic() + 30
+        while not path.exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        time.sleep(0.5)  # let it rewrite the file many times, then kill it mid-write
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    data = json.loads(path.read_text())
+    assert data['i'] > 0 and len(data['pad']) == 200000
+
+
+def test_silence_watch_reports_silent_and_back():
+    watch = SilenceWatch(['planner', 'sim_bridge'], timeout=2.0, now=0.0)
+    watch.heard('planner: heartbeat', now=1.5)
+    assert watch.check(now=2.5) == (['sim_bridge'], [])
+    assert watch.check(now=3.0) == ([], [])  # reported once
+    assert watch.check(now=3.6) == (['planner'], [])
+    watch.heard('sim_bridge: heartbeat', now=4.0)
+    watch.heard('unrelated: heartbeat', now=4.0)
+    assert watch.check(now=4.1) == ([], ['sim_bridge'])
+
+
+def test_map_description_with_obstacles():
+    grid = grid_from_description(0.1, [0.0, 0.0], 2.0, 1.0, [0.5, 0.0, 0.7, 0.6])
+    assert grid.occupied.shape == (10, 20)
+    assert grid.occupied[2, 6] and not grid.occupied[8, 6] and not grid.occupied[2, 2]
+
+
+@pytest.mark.parametrize('args, match', [
+    ((0.0, [0, 0], 1, 1, []), 'map.resolution'),
+    ((0.1, [0, 0], 1, 1, [1, 2, 3]), 'rectangles'),
+    ((0.1, [0, 0], 1, 1, [1, 1, 0, 0]), 'empty'),
+    ((0.1, [0], 1, 1, []), 'map.origin'),
+])
+def test_bad_map_description_is_a_clear_error(args, match):
+    with pytest.raises(ValueError, match=match):
+        grid_from_description(*args)
+
+
+def test_map_file_errors(tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('resolution: [0.1\n  origin')
+    with pytest.raises(ValueError, match='not valid YAML'):
+        load_map_file(bad)
+    partial = tmp_path / 'partial.yaml'
+    partial.write_text('resolution: 0.1\n')
+    with pytest.raises(ValueError, match='missing key'):
+        load_map_file(partial)
+    with pytest.raises(ValueError, match='No such file'):
+        load_map_file(tmp_path / 'absent.yaml')
+    good = tmp_path / 'good.yaml'
+    good.write_text('resolution: 0.1\norigin: [-1, -1]\nwidth: 2\nheight: 2\n'
+                    'obstacles: [0, 0, 0.5, 0.5]\n')
+    assert load_map_file(good).occupied.sum() > 0
