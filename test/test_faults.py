@@ -12,10 +12,11 @@ from rcl_interfaces.srv import SetParameters
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
-from ros_graph import Client, NodeProcesses
 from sela_ros import conversions as conv
 from sela_ros.adapter_node import MISSION_STATUS
 from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+
+from ros_graph import Client, NodeProcesses
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 

@@ -13,7 +13,7 @@ from sela_ros.heartbeat import SilenceWatch
 from sela_ros.mission import MissionLogic, as_seen_in_odometry
 from sela_ros.persistence import StateError, atomic_write_json, load_state, set_aside
 from sela_ros.planner_node import grid_from_description, load_map_file
-from sela_ros.sela import SE2Motion, SELA, SELAConfig
+from sela_ros.sela import SELA, SE2Motion, SELAConfig
 
 
 def _sela():
