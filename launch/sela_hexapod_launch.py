@@ -1,4 +1,6 @@
-"""Start the four sela_ros nodes with config/sela.yaml (ros2 launch sela_ros sela_hexapod_launch.py).
+"""Start the four sela_ros nodes with config/sela.yaml.
+
+Usage: ``ros2 launch sela_ros sela_hexapod_launch.py [damage:=...] [seed:=...]``.
 
 Arguments: damage (default remove:middle_right), seed (0), gui (false), params_file (the
 installed config/sela.yaml), archive ('' = the shipped archive). Send the goal with e.g.

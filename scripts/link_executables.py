@@ -21,7 +21,8 @@ def declared_console_scripts(dist_name='sela_ros'):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--prefix', default=sys.prefix, help='install prefix (default: %(default)s)')
+    parser.add_argument('--prefix', default=sys.prefix,
+                        help='install prefix (default: %(default)s)')
     args = parser.parse_args(argv)
     prefix = Path(args.prefix).resolve()
     bin_dir = prefix / 'bin'

@@ -92,6 +92,7 @@ class PlannerNode(Node):
 
         self.frame_id = self.get_parameter('frame_id').value
         self.lookahead = float(self.get_parameter('planner.lookahead').value)
+        self.map_error = None
         self.grid = self._load_grid()
         self.planner = GridPlanner(self.grid)
         self.pose = None
@@ -108,6 +109,8 @@ class PlannerNode(Node):
         add_heartbeat(self)
         self.map_pub.publish(conv.occupancy_grid_to_msg(
             self.grid.occupied, self.grid.resolution, self.grid.origin, frame_id=self.frame_id))
+        if self.map_error:
+            self._report(DiagnosticStatus.ERROR, self.map_error)
         self.get_logger().info(f'map {self.grid.width}x{self.grid.height} cells of '
                                f'{self.grid.resolution} m, bounds {self.grid.bounds_text()}, '
                                f'lookahead {self.lookahead} m')
@@ -115,7 +118,12 @@ class PlannerNode(Node):
     def _load_grid(self):
         path = self.get_parameter('map.file').value
         if path:
-            return load_map_file(path)
+            try:
+                return load_map_file(path)
+            except ValueError as exc:
+                # A bad map file must not take the planner down: say why, use the params.
+                self.map_error = f'{exc}; planning on the map.* parameters instead'
+                self.get_logger().error(self.map_error)
         return grid_from_description(
             self.get_parameter('map.resolution').value, self.get_parameter('map.origin').value,
             self.get_parameter('map.width').value, self.get_parameter('map.height').value,

@@ -53,6 +53,9 @@ def test_launch_starts_the_four_nodes_with_the_config(launch_description):
 def test_config_is_keyed_by_node_name_with_ros_parameters():
     config = yaml.safe_load((ROOT / 'config' / 'sela.yaml').read_text())
     assert set(config) == set(NODES)
+    from sela_ros.planner_node import load_map_file
+
+    assert load_map_file(ROOT / 'config' / 'obstacle_map.yaml').occupied.any()
     for node in NODES:
         assert set(config[node]) == {'ros__parameters'}
     assert config['sim_bridge']['ros__parameters']['use_sim_time'] is False
