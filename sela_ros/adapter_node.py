@@ -23,6 +23,7 @@ good one with ``ros2 param set /sela_adapter archive PATH``.
 """
 import math
 import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import rclpy
@@ -72,6 +73,7 @@ class SelaAdapter(Node):
             os.environ.get('ROS_HOME', os.path.expanduser('~/.ros')), 'sela_ros',
             'sela_adapter_state.json')
         self.archive = self.sela = self.logic = None
+        self._saver = ThreadPoolExecutor(max_workers=1, thread_name_prefix='state_saver')
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.state = 'idle'
         self.goal = None
@@ -111,7 +113,7 @@ class SelaAdapter(Node):
         else:
             if self.get_parameter('resume').value:
                 self._resume()
-        self.timer = self.create_timer(0.01, self.tick, clock=self.wall)
+        self.timer = self.create_timer(0.05, self.tick, clock=self.wall)
 
     # --- archive and persistence ---------------------------------------------------------
 
@@ -188,6 +190,11 @@ class SelaAdapter(Node):
                         'adaptations': self.logic.adaptations,
                         'last': None if last is None else [int(last[0]), last[1].tolist()],
                         'next_id': self.next_id, 'pending': pending}}
+        # The snapshot is taken here; the fsync'ed write happens off the step's critical path,
+        # one at a time and in order (a later snapshot always lands after an earlier one).
+        self._saver.submit(self._write_state, state)
+
+    def _write_state(self, state):
         try:
             atomic_write_json(self.state_file, state)
         except (OSError, ValueError) as exc:
@@ -322,7 +329,7 @@ class SelaAdapter(Node):
     # --- the step state machine ----------------------------------------------------------
 
     def tick(self):
-        """Advance the step state machine; called by events and by a 10 ms wall timer."""
+        """Advance the step state machine; called by events and by a 50 ms wall timer."""
         now = self.wall.now().nanoseconds * 1e-9
         if self.state == 'ready':
             self._start_step(now)
@@ -351,7 +358,7 @@ class SelaAdapter(Node):
         request = GetPlan.Request()
         request.start = conv.pose_stamped(pose[:2], pose[2], stamp, self.frame_id)
         request.goal = conv.pose_stamped(self.goal, 0.0, stamp, self.frame_id)
-        self.pending = {'pose': pose, 'stamp': (stamp.sec, stamp.nanosec),
+        self.pending = {'pose': pose, 'stamp': (stamp.sec, stamp.nanosec), 't_start': now,
                         'future': self.plan_client.call_async(request),
                         'deadline': now + 10.0}
         self.state = 'planning'
@@ -386,12 +393,14 @@ class SelaAdapter(Node):
 
     def _send(self, now):
         params = self.archive.params[self.pending['decision'].index]
+        self.pending['t_sent'] = now
         self.behavior_pub.publish(conv.behavior_to_msg(params, self.pending['id']))
         self.pending['deadline'] = now + float(self.get_parameter('outcome_timeout').value)
         self.state = 'executing'
 
     def _on_outcome(self, outcome):
         decision = self.pending['decision']
+        self.pending['t_outcome'] = self.wall.now().nanoseconds * 1e-9
         record = self.logic.outcome(decision, self.pending['pose'], outcome.generic_reward,
                                     fallen=outcome.fallen)
         self.pose = outcome.end_pose
@@ -429,7 +438,10 @@ class SelaAdapter(Node):
                           pose=_fmt(record.pose), waypoint=_fmt(record.waypoint),
                           predicted_gr=_fmt(record.predicted_gr),
                           observed_gr=_fmt(record.observed_gr), reward=f'{reward:.6f}',
-                          end_pose=_fmt(self.pose), fallen=record.fallen)
+                          end_pose=_fmt(self.pose), fallen=record.fallen,
+                          # wall time of the step so far: choosing, and the gait's round trip
+                          decide_ms=_ms(self.pending, 't_start', 't_sent'),
+                          execute_ms=_ms(self.pending, 't_sent', 't_outcome'))
         if self.result is not None:
             values['success'] = self.result
         status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
@@ -437,6 +449,17 @@ class SelaAdapter(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.status = [status]
         self.diag_pub.publish(msg)
+
+
+    def destroy_node(self):
+        self._saver.shutdown(wait=True)  # the last snapshot reaches the disk
+        super().destroy_node()
+
+
+def _ms(pending, start, end):
+    if start in pending and end in pending:
+        return f'{(pending[end] - pending[start]) * 1e3:.1f}'
+    return 'nan'
 
 
 def _fmt(values):

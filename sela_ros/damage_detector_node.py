@@ -47,7 +47,7 @@ class DamageDetectorNode(Node):
                                  self.outcome_callback, OUTCOME_QOS)
         self.adapt_client = self.create_client(Trigger, '/sela_adapter/adapt')
         self.add_on_set_parameters_callback(self.parameters_callback)
-        self.create_timer(0.01, self.flush_verdicts, clock=self.wall)
+        self.create_timer(0.05, self.flush_verdicts, clock=self.wall)
         # Watch the other nodes' heartbeats: a silent node is reported on /diagnostics.
         self.watch = SilenceWatch(self.get_parameter('heartbeat.nodes').value,
                                   self.get_parameter('heartbeat.timeout').value)
@@ -147,6 +147,7 @@ class DamageDetectorNode(Node):
         future = None
         if self.adapt_client.service_is_ready():
             future = self.adapt_client.call_async(Trigger.Request())
+            future.add_done_callback(lambda _: self.flush_verdicts())
         else:
             self.get_logger().error('/sela_adapter/adapt is not available')
         deadline = self.wall.now().nanoseconds * 1e-9 + ADAPT_TIMEOUT
