@@ -247,7 +247,8 @@ def plot_trajectory(path, trajectory, steps, goal, damage):
     ax.set_xlabel('x (m)')
     ax.set_ylabel('y (m)')
     ax.set_title(f'SELA mission, damage {damage}: {len(steps)} steps\n'
-                 'grey dots: trusting the map, red: adapting; orange: step -> waypoint')
+                 'dots: pose at each step (grey: trusting the map, red: adapting);\n'
+                 'orange: pose -> waypoint of the reward', fontsize=9)
     ax.legend(loc='lower right', fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
