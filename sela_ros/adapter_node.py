@@ -42,6 +42,7 @@ from sela_ros import conversions as conv
 from sela_ros.archive import ArchiveError, default_archive_path, load_archive
 from sela_ros.heartbeat import add_heartbeat
 from sela_ros.mission import MissionLogic, make_sela
+from sela_ros.params import first_problem, positive_int, positive_number, startup_only, string
 from sela_ros.persistence import STATE_FORMAT, StateError, atomic_write_json, load_state, set_aside
 from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
 from sela_ros.sela import Decision
@@ -302,17 +303,16 @@ class SelaAdapter(Node):
         return response
 
     def parameters_callback(self, params):
+        rules = dict.fromkeys(SELA_KEYS + ('adapt_on_start', 'state_file', 'resume',
+                                           'frame_id'), startup_only)
+        rules.update({'detector_timeout': positive_number(' (s)'),
+                      'outcome_timeout': positive_number(' (s)'), 'max_steps': positive_int,
+                      'archive': string})
+        problem = first_problem(((p.name, p.value) for p in params), rules)
+        if problem:
+            return SetParametersResult(successful=False, reason=problem)
         for param in params:
-            if param.name in ('detector_timeout', 'outcome_timeout'):
-                if not (isinstance(param.value, (int, float)) and param.value > 0):
-                    return SetParametersResult(successful=False,
-                                               reason=f'{param.name} must be > 0 (s)')
-            elif param.name == 'max_steps':
-                if not (isinstance(param.value, int) and param.value > 0):
-                    return SetParametersResult(successful=False,
-                                               reason='max_steps must be an integer > 0')
-                self.max_steps = param.value
-            elif param.name == 'archive':
+            if param.name == 'archive':
                 if self.state not in ('idle', 'done', 'ready'):
                     return SetParametersResult(successful=False,
                                                reason='archive cannot change mid-step')
@@ -320,10 +320,8 @@ class SelaAdapter(Node):
                     self._use_archive(param.value or str(default_archive_path()))
                 except ArchiveError as exc:
                     return SetParametersResult(successful=False, reason=str(exc))
-            elif param.name in SELA_KEYS or param.name in ('adapt_on_start', 'state_file',
-                                                           'resume'):
-                return SetParametersResult(
-                    successful=False, reason=f'{param.name} can only be set at start-up')
+            elif param.name == 'max_steps':
+                self.max_steps = param.value
         return SetParametersResult(successful=True)
 
     # --- the step state machine ----------------------------------------------------------

@@ -18,6 +18,7 @@ from std_srvs.srv import Trigger
 from sela_ros import conversions as conv
 from sela_ros.damage_detection import DamageDetector, DetectorConfig
 from sela_ros.heartbeat import SilenceWatch, add_heartbeat
+from sela_ros.params import first_problem, positive_number, startup_only
 from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 
 STATUS_NAME = 'damage_detector: prediction error'
@@ -88,19 +89,24 @@ class DamageDetectorNode(Node):
         return DetectorConfig(**values)
 
     def parameters_callback(self, params):
-        for p in params:
-            if p.name == 'heartbeat.timeout':
-                if not (isinstance(p.value, (int, float)) and p.value > 0):
-                    return SetParametersResult(successful=False,
-                                               reason='heartbeat.timeout must be > 0 (s)')
-                self.watch.timeout = float(p.value)
+        problem = first_problem(((p.name, p.value) for p in params),
+                                {'heartbeat.timeout': positive_number(' (s)'),
+                                 'heartbeat.nodes': startup_only})
+        if problem:
+            return SetParametersResult(successful=False, reason=problem)
         overrides = {p.name.split('.', 1)[1]: p.value for p in params
                      if p.name.startswith('detection.')}
+        config = None
         if overrides:
             try:
                 config = self._config_from(overrides)
             except (TypeError, ValueError) as exc:
                 return SetParametersResult(successful=False, reason=str(exc))
+        # Everything checked: apply.
+        for p in params:
+            if p.name == 'heartbeat.timeout':
+                self.watch.timeout = float(p.value)
+        if config is not None:
             self.detector = DamageDetector(config)
         return SetParametersResult(successful=True)
 

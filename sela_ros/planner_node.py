@@ -25,6 +25,7 @@ from rclpy.parameter import Parameter
 
 from sela_ros import conversions as conv
 from sela_ros.heartbeat import add_heartbeat
+from sela_ros.params import first_problem, positive_number, startup_only
 from sela_ros.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
 from sela_ros.qos import LATCHED_QOS, STATE_QOS
 
@@ -136,16 +137,14 @@ class PlannerNode(Node):
             return []  # no obstacles given: ROS cannot hold an empty typed array in YAML
 
     def parameters_callback(self, params):
+        rules = {'planner.lookahead': positive_number(' (m)'), 'frame_id': startup_only}
+        rules.update({p.name: startup_only for p in params if p.name.startswith('map.')})
+        problem = first_problem(((p.name, p.value) for p in params), rules)
+        if problem:
+            return SetParametersResult(successful=False, reason=problem)
         for param in params:
             if param.name == 'planner.lookahead':
-                if not (isinstance(param.value, (int, float)) and math.isfinite(param.value)
-                        and param.value > 0):
-                    return SetParametersResult(successful=False,
-                                               reason='planner.lookahead must be > 0 (m)')
                 self.lookahead = float(param.value)
-            elif param.name.startswith('map.'):
-                return SetParametersResult(successful=False,
-                                           reason=f'{param.name} can only be set at start-up')
         return SetParametersResult(successful=True)
 
     def odom_callback(self, msg):

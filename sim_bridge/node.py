@@ -25,10 +25,31 @@ from std_srvs.srv import Trigger
 
 from sela_ros import conversions as conv
 from sela_ros.heartbeat import add_heartbeat
+from sela_ros.params import first_problem, non_negative_number, positive_number, startup_only
 from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 from sim_bridge.damage import DamageSpecError, parse_damage
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.hexapod import Hexapod
+
+
+def damage_rule(value):
+    """A damage spec users can type; the error lists the valid names."""
+    if not isinstance(value, str):
+        return f'must be a string such as remove:middle_right, got {value!r}'
+    try:
+        parse_damage(value)
+    except DamageSpecError as exc:
+        return f'is invalid: {exc}'
+    return None
+
+
+PARAMETER_RULES = {
+    'damage': damage_rule,
+    'observation.noise_std': non_negative_number(' (m)'),
+    'publish_period': positive_number(' (s of sim time)'),
+    'sim.dt': startup_only, 'sim.gait_duration': startup_only, 'sim.gui': startup_only,
+    'seed': startup_only, 'reset_on_fall': startup_only,
+}
 
 
 class SimBridge(Node):
@@ -119,28 +140,15 @@ class SimBridge(Node):
         return response
 
     def parameters_callback(self, params):
+        problem = first_problem(((p.name, p.value) for p in params), PARAMETER_RULES)
+        if problem:
+            return SetParametersResult(successful=False, reason=problem)
         for param in params:
             if param.name == 'damage':
-                try:
-                    spec = parse_damage(param.value if isinstance(param.value, str) else '')
-                    if not isinstance(param.value, str):
-                        raise DamageSpecError(f'damage must be a string, got {param.value!r}')
-                except DamageSpecError as exc:
-                    return SetParametersResult(successful=False, reason=str(exc))
-                self._work.put(('damage', spec.canonical(), None))
-            elif param.name in ('sim.dt', 'sim.gait_duration', 'sim.gui', 'seed'):
-                return SetParametersResult(
-                    successful=False, reason=f'{param.name} can only be set at start-up')
+                self._work.put(('damage', parse_damage(param.value).canonical(), None))
             elif param.name == 'observation.noise_std':
-                value = param.value
-                if not isinstance(value, (int, float)) or not value >= 0.0:
-                    return SetParametersResult(
-                        successful=False, reason='observation.noise_std must be a number >= 0')
-                self._work.put(('noise', float(value), None))
+                self._work.put(('noise', float(param.value), None))
             elif param.name == 'publish_period':
-                if not isinstance(param.value, (int, float)) or not param.value > 0.0:
-                    return SetParametersResult(successful=False,
-                                               reason='publish_period must be > 0')
                 self.publish_period = float(param.value)
         return SetParametersResult(successful=True)
 
