@@ -26,14 +26,12 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
@@ -42,6 +40,7 @@ from sela_ros import conversions as conv
 from sela_ros.archive import ArchiveError, default_archive_path, load_archive
 from sela_ros.heartbeat import add_heartbeat
 from sela_ros.mission import MissionLogic, make_sela
+from sela_ros.node_main import run_node
 from sela_ros.params import first_problem, positive_int, positive_number, startup_only, string
 from sela_ros.persistence import STATE_FORMAT, StateError, atomic_write_json, load_state, set_aside
 from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
@@ -465,17 +464,7 @@ def _fmt(values):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SelaAdapter()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(SelaAdapter, args)
 
 
 if __name__ == '__main__':

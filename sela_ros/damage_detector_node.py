@@ -6,11 +6,9 @@ on ``/diagnostics`` (name ``damage_detector: prediction error``; level ERROR whe
 detected). When it detects damage it first calls ``/sela_adapter/adapt`` and publishes the
 verdict once the adapter has answered, so that the adapter's next choice already knows.
 """
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -18,6 +16,7 @@ from std_srvs.srv import Trigger
 from sela_ros import conversions as conv
 from sela_ros.damage_detection import DamageDetector, DetectorConfig
 from sela_ros.heartbeat import SilenceWatch, add_heartbeat
+from sela_ros.node_main import run_node
 from sela_ros.params import first_problem, positive_number, startup_only
 from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 
@@ -174,17 +173,7 @@ class DamageDetectorNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = DamageDetectorNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(DamageDetectorNode, args)
 
 
 if __name__ == '__main__':

@@ -10,7 +10,6 @@ latest odometry, so a bad goal is reported as soon as it is sent.
 import math
 
 import numpy as np
-import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PoseStamped
@@ -19,12 +18,12 @@ from nav_msgs.msg import Odometry, Path
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterUninitializedException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from sela_ros import conversions as conv
 from sela_ros.heartbeat import add_heartbeat
+from sela_ros.node_main import run_node
 from sela_ros.params import first_problem, positive_number, startup_only
 from sela_ros.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
 from sela_ros.qos import LATCHED_QOS, STATE_QOS
@@ -209,17 +208,7 @@ class PlannerNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PlannerNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(PlannerNode, args)
 
 
 if __name__ == '__main__':

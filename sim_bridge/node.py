@@ -11,12 +11,11 @@ while the robot walks.
 import queue
 import threading
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
@@ -25,6 +24,7 @@ from std_srvs.srv import Trigger
 
 from sela_ros import conversions as conv
 from sela_ros.heartbeat import add_heartbeat
+from sela_ros.node_main import run_node
 from sela_ros.params import first_problem, non_negative_number, positive_number, startup_only
 from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 from sim_bridge.damage import DamageSpecError, parse_damage
@@ -233,19 +233,8 @@ class SimBridge(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimBridge()
-        executor = MultiThreadedExecutor(num_threads=2)
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    # Two threads: services and parameters are answered while the gait worker runs.
+    run_node(SimBridge, args, executor_factory=lambda: MultiThreadedExecutor(num_threads=2))
 
 
 if __name__ == '__main__':
