@@ -26,7 +26,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
 from nav_msgs.srv import GetPlan
@@ -203,12 +203,8 @@ class SelaAdapter(Node):
 
     def _error(self, message):
         self.get_logger().error(message)
-        status = DiagnosticStatus(level=DiagnosticStatus.ERROR, name=MISSION_STATUS,
-                                  message=message, hardware_id='sela_ros')
-        msg = DiagnosticArray()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.status = [status]
-        self.diag_pub.publish(msg)
+        self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
+            DiagnosticStatus.ERROR, MISSION_STATUS, message), self.get_clock().now().to_msg()))
 
     # --- inputs --------------------------------------------------------------------------
 
@@ -266,7 +262,7 @@ class SelaAdapter(Node):
         for status in msg.status:
             if status.name != DETECTOR_STATUS:
                 continue
-            values = {kv.key: kv.value for kv in status.values}
+            values = conv.status_values(status)
             if values.get('behavior_id') == str(self.pending.get('id')):
                 self.state = 'ready'
                 self.tick()
@@ -423,8 +419,6 @@ class SelaAdapter(Node):
         self._save()
 
     def _publish_status(self, level, message, record, reward):
-        status = DiagnosticStatus(level=level, name=MISSION_STATUS, message=message,
-                                  hardware_id='sela_ros')
         values = {'state': self.state, 'steps': self.steps,
                   'adapting': self.logic.adapting, 'adaptations': self.logic.adaptations,
                   'observations': len(self.sela.observations[0]),
@@ -441,11 +435,9 @@ class SelaAdapter(Node):
                           execute_ms=_ms(self.pending, 't_sent', 't_outcome'))
         if self.result is not None:
             values['success'] = self.result
-        status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
-        msg = DiagnosticArray()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.status = [status]
-        self.diag_pub.publish(msg)
+        self.diag_pub.publish(conv.diagnostic_array(
+            conv.diagnostic_status(level, MISSION_STATUS, message, values),
+            self.get_clock().now().to_msg()))
 
 
     def destroy_node(self):

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PoseStamped, Quaternion
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry, Path
@@ -282,3 +283,26 @@ def occupancy_grid_from_msg(msg):
     origin = _finite_array([msg.info.origin.position.x, msg.info.origin.position.y],
                            'occupancy grid origin', 2)
     return occupied, float(msg.info.resolution), origin
+
+
+# --- diagnostics ---------------------------------------------------------------------------
+
+
+def diagnostic_status(level, name, message, values=None, hardware_id='sela_ros'):
+    """A DiagnosticStatus; ``values`` is a mapping whose values are shown with ``str``."""
+    status = DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id)
+    status.values = [KeyValue(key=str(k), value=str(v)) for k, v in (values or {}).items()]
+    return status
+
+
+def diagnostic_array(statuses, stamp):
+    """A DiagnosticArray of one status or a list of them; ``stamp`` in seconds or a Time."""
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp if isinstance(stamp, Time) else time_to_msg(stamp)
+    msg.status = list(statuses) if isinstance(statuses, (list, tuple)) else [statuses]
+    return msg
+
+
+def status_values(status):
+    """The key/value pairs of a DiagnosticStatus as a dict."""
+    return {kv.key: kv.value for kv in status.values}

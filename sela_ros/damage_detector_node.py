@@ -68,18 +68,15 @@ class DamageDetectorNode(Node):
             message = (f'{node} silent for {self.watch.silence(node):.1f} s '
                        f'(heartbeat.timeout {self.watch.timeout} s)')
             self.get_logger().error(message)
-            statuses.append(DiagnosticStatus(level=DiagnosticStatus.ERROR,
-                                             name=f'{node}: liveness', message=message,
-                                             hardware_id='sela_ros'))
+            statuses.append(conv.diagnostic_status(DiagnosticStatus.ERROR,
+                                                   f'{node}: liveness', message))
         for node in back:
             self.get_logger().info(f'{node} is back')
-            statuses.append(DiagnosticStatus(level=DiagnosticStatus.OK, name=f'{node}: liveness',
-                                             message='heartbeat back', hardware_id='sela_ros'))
+            statuses.append(conv.diagnostic_status(DiagnosticStatus.OK, f'{node}: liveness',
+                                                   'heartbeat back'))
         if statuses:
-            msg = DiagnosticArray()
-            msg.header.stamp = self.get_clock().now().to_msg()
-            msg.status = statuses
-            self.diag_pub.publish(msg)
+            self.diag_pub.publish(conv.diagnostic_array(statuses,
+                                                        self.get_clock().now().to_msg()))
 
     def _config_from(self, overrides):
         values = {name: self.get_parameter(f'detection.{name}').value
@@ -130,20 +127,16 @@ class DamageDetectorNode(Node):
             return  # no prediction: a command from someone else, nothing to compare with
         verdict = self.detector.observe(prediction[0], outcome.generic_reward, prediction[1])
         level = DiagnosticStatus.ERROR if verdict.fire else DiagnosticStatus.OK
-        status = DiagnosticStatus(
-            level=level, name=STATUS_NAME, hardware_id='hexapod',
-            message='damage detected: adaptation requested' if verdict.fire
-            else 'outcome as predicted' if verdict.error <= self.detector.config.threshold
-            else 'outcome off prediction')
-        status.values = [KeyValue(key='behavior_id', value=str(outcome.behavior_id)),
-                         KeyValue(key='error', value=f'{verdict.error:.6f}'),
-                         KeyValue(key='mean_error', value=f'{verdict.mean_error:.6f}'),
-                         KeyValue(key='sigma', value=f'{prediction[1]:.6f}'),
-                         KeyValue(key='threshold', value=str(self.detector.config.threshold)),
-                         KeyValue(key='detections', value=str(self.detector.detections))]
-        out = DiagnosticArray()
-        out.header.stamp = self.get_clock().now().to_msg()
-        out.status = [status]
+        message = ('damage detected: adaptation requested' if verdict.fire
+                   else 'outcome as predicted' if verdict.error <= self.detector.config.threshold
+                   else 'outcome off prediction')
+        out = conv.diagnostic_array(conv.diagnostic_status(
+            level, STATUS_NAME, message,
+            {'behavior_id': outcome.behavior_id, 'error': f'{verdict.error:.6f}',
+             'mean_error': f'{verdict.mean_error:.6f}', 'sigma': f'{prediction[1]:.6f}',
+             'threshold': self.detector.config.threshold,
+             'detections': self.detector.detections}, hardware_id='hexapod'),
+            self.get_clock().now().to_msg())
         if not verdict.fire:
             self.diag_pub.publish(out)
             return

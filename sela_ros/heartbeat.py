@@ -1,9 +1,10 @@
 """Heartbeats on ``/diagnostics``: every node says it is alive; a watcher reports silence."""
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.clock import Clock, ClockType
 
+from sela_ros.conversions import diagnostic_array, diagnostic_status
 from sela_ros.qos import STATE_QOS
 
 SUFFIX = ': heartbeat'
@@ -16,13 +17,9 @@ def add_heartbeat(node, period=1.0):
     started = time.monotonic()
 
     def beat():
-        msg = DiagnosticArray()
-        msg.header.stamp = node.get_clock().now().to_msg()
-        status = DiagnosticStatus(level=DiagnosticStatus.OK, name=name, message='alive',
-                                  hardware_id='sela_ros')
-        status.values = [KeyValue(key='uptime_s', value=f'{time.monotonic() - started:.1f}')]
-        msg.status = [status]
-        pub.publish(msg)
+        pub.publish(diagnostic_array(diagnostic_status(
+            DiagnosticStatus.OK, name, 'alive', {'uptime_s': f'{time.monotonic() - started:.1f}'}),
+            node.get_clock().now().to_msg()))
 
     beat()
     return node.create_timer(period, beat, clock=Clock(clock_type=ClockType.STEADY_TIME))

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry, Path
@@ -198,13 +198,10 @@ class PlannerNode(Node):
     def _report(self, level, message):
         self.get_logger().error(message) if level >= DiagnosticStatus.ERROR else \
             self.get_logger().info(message)
-        status = DiagnosticStatus(level=level, name='planner', message=message,
-                                  hardware_id='sela_ros')
-        status.values = [KeyValue(key='bounds', value=self.grid.bounds_text())]
-        msg = DiagnosticArray()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.status = [status]
-        self.diag_pub.publish(msg)
+        self.diag_pub.publish(conv.diagnostic_array(
+            conv.diagnostic_status(level, 'planner', message,
+                                   {'bounds': self.grid.bounds_text()}),
+            self.get_clock().now().to_msg()))
 
 
 def main(args=None):

@@ -11,7 +11,7 @@ while the robot walks.
 import queue
 import threading
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -116,12 +116,9 @@ class SimBridge(Node):
         except conv.MessageError as exc:
             message = f'rejected command on /hexapod/behavior: {exc}'
             self.get_logger().error(message)
-            status = DiagnosticStatus(level=DiagnosticStatus.ERROR, name='sim_bridge: command',
-                                      message=message, hardware_id='hexapod')
-            out = DiagnosticArray()
-            out.header.stamp = conv.time_to_msg(self.env.robot.sim_time)
-            out.status = [status]
-            self.diag_pub.publish(out)
+            self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
+                DiagnosticStatus.ERROR, 'sim_bridge: command', message, hardware_id='hexapod'),
+                self.env.robot.sim_time))
             return
         if behavior_id is None:
             behavior_id = self._next_auto_id
@@ -200,16 +197,12 @@ class SimBridge(Node):
         self.outcome_pub.publish(conv.outcome_to_msg(outcome))
 
     def _report_fall(self, behavior_id):
-        status = DiagnosticStatus(level=DiagnosticStatus.ERROR, name='sim_bridge: robot',
-                                  message='robot fell or flipped',
-                                  hardware_id='hexapod')
-        status.values = [KeyValue(key='behavior_id', value=str(behavior_id))]
+        values = {'behavior_id': behavior_id}
         if self.reset_on_fall:
-            status.values.append(KeyValue(key='action', value='righted in place'))
-        msg = DiagnosticArray()
-        msg.header.stamp = conv.time_to_msg(self.env.robot.sim_time)
-        msg.status = [status]
-        self.diag_pub.publish(msg)
+            values['action'] = 'righted in place'
+        self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
+            DiagnosticStatus.ERROR, 'sim_bridge: robot', 'robot fell or flipped', values,
+            hardware_id='hexapod'), self.env.robot.sim_time))
         self.get_logger().error(f'robot fell during behavior {behavior_id}')
 
     def _publish_state(self, sim_time, pose=None, positions=None, velocities=None):
