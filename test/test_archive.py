@@ -193,8 +193,7 @@ def test_default_archive_path_is_in_package():
 
 def test_shipped_archive_is_valid():
     path = default_archive_path()
-    if not path.exists():
-        pytest.skip('no shipped archive yet')
+    assert path.exists(), f'the shipped archive {path} is missing'
     archive = load_archive(path)
     assert path.stat().st_size <= 20 * 1024 * 1024
     assert len(archive) >= 2000
