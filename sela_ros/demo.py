@@ -50,8 +50,9 @@ def build_parser():
     parser.add_argument('--keep-learning', action='store_true',
                         help="resume from what the previous demo in --out learned (the "
                         "adapter's state file) instead of starting from the intact map")
-    parser.add_argument('--quiet-nodes', action='store_true',
-                        help="send the nodes' own logs to files in --out only")
+    parser.add_argument('--node-logs', action='store_true',
+                        help="show the nodes' own logs here too (default: only in "
+                        "--out/<node>.log)")
     return parser
 
 
@@ -94,9 +95,10 @@ def main(argv=None):
                 if args.archive:
                     cmd += ['-p', f'archive:={args.archive}']
             logs[name] = open(out / f'{name}.log', 'w')  # noqa: SIM115
+            to_file = not args.node_logs
             procs[name] = subprocess.Popen(
-                cmd, env=env, stdout=logs[name] if args.quiet_nodes else None,
-                stderr=subprocess.STDOUT if args.quiet_nodes else None)
+                cmd, env=env, stdout=logs[name] if to_file else None,
+                stderr=subprocess.STDOUT if to_file else None)
         print(f"sela-demo: damage '{damage}', goal ({args.goal[0]}, {args.goal[1]}), seed "
               f"{args.seed}, ROS_DOMAIN_ID={env.get('ROS_DOMAIN_ID', '0')}, nodes: "
               + ', '.join(f'{n}[{p.pid}]' for n, p in procs.items()), flush=True)

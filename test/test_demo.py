@@ -13,7 +13,7 @@ def test_demo_reaches_goal_and_writes_summary_plot_and_mcap(tmp_path, ros_env):
     out = tmp_path / 'demo'
     proc = subprocess.run(
         [str(executable('sela-demo')), '--goal', '1.0,0.6', '--seed', '2', '--out', str(out),
-         '--quiet-nodes', '--timeout', '400'],
+         '--timeout', '400'],
         env=ros_env, capture_output=True, text=True, timeout=480)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert 'goal reached' in proc.stdout
