@@ -67,7 +67,7 @@ def _config():
         return yaml.safe_load(handle)
 
 
-def _in_process_mission(damage, seed, goal):
+def _in_process_mission(damage, seed, goal, on_step=None):
     """The same mission, same configuration, run in process (no DDS)."""
     from sela_ros.archive import default_archive_path, load_archive
     from sela_ros.damage_detection import DetectorConfig
@@ -92,7 +92,7 @@ def _in_process_mission(damage, seed, goal):
                             if k.startswith('detection.')})
     return run_mission(env, load_archive(default_archive_path()), goal, GridPlanner(grid),
                        lookahead=plan['planner.lookahead'], sela_config=sela_config,
-                       detector_config=det, max_steps=adapter['max_steps'])
+                       detector_config=det, max_steps=adapter['max_steps'], on_step=on_step)
 
 
 @pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'remove:middle_right',
