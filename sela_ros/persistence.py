@@ -15,13 +15,19 @@ class StateError(ValueError):
     """A state file that cannot be used (corrupt, or for another archive)."""
 
 
-def atomic_write_bytes(path, data):
+def atomic_write(path, write):
+    """Call ``write(binary_handle)`` on a temporary file beside ``path``, fsync, rename over.
+
+    The file gets the usual permissions (``mkstemp`` makes 0600), and the directory entry
+    is fsync'ed too, so the rename itself survives a power cut.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.tmp', dir=path.parent)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, 'wb') as handle:
-            handle.write(data)
+            write(handle)
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp_name, path)
@@ -36,6 +42,16 @@ def atomic_write_bytes(path, data):
         os.fsync(dir_fd)
     finally:
         os.close(dir_fd)
+
+
+def _umask():
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_bytes(path, data):
+    atomic_write(path, lambda handle: handle.write(data))
 
 
 def atomic_write_json(path, obj):
