@@ -39,7 +39,7 @@ def report(doc, measured_wall, label):
         sim, wall = m['sim_seconds'], m['wall_seconds']
         total_sim += sim
         total += wall
-        print(f'  {name:16s} {gaits:5d} gaits  {wall:8.1f} s CPU-side  simulation '
+        print(f'  {name:16s} {gaits:5d} gaits  {wall:8.1f} s worker wall  simulation '
               f'{100 * sim / wall:5.1f}%  learning+deciding {100 * (wall - sim) / wall:5.1f}%'
               f'  ({1000 * sim / max(gaits, 1):.0f} ms/gait)')
     print(f'  all methods: simulation {100 * total_sim / total:.1f}%, learning+deciding '
