@@ -83,6 +83,7 @@ class SelaAdapter(Node):
         self.pending = {}
         self.targets = {}
         self.steps = 0
+        self.next_plan = None
         self.failed_steps = 0
         self.result = None
 
@@ -218,6 +219,7 @@ class SelaAdapter(Node):
                 and self.state not in ('idle', 'done')):
             return  # the latched goal again (e.g. after a restart): the mission goes on
         self.goal = goal
+        self.next_plan = None
         if self.sela is not None:
             self.sela.set_goal(goal)
         self.steps = 0
@@ -344,19 +346,32 @@ class SelaAdapter(Node):
             return self._finish(True, pose)
         if self.steps >= self.max_steps:
             return self._finish(False, pose)
-        if not self.plan_client.service_is_ready():
-            return
+        plan = self.next_plan
+        self.next_plan = None
+        if plan is None or not np.array_equal(plan['pose'], pose) or \
+                plan['stamp'] != _stamp_key(self.steps + 1):
+            plan = self._request_plan(pose, self.steps + 1, now)
+            if plan is None:
+                return
         self.steps += 1
-        stamp = conv.time_to_msg(self.steps)  # a unique stamp pairs request and target
+        self.pending = plan
+        self.state = 'planning'
+        if plan['future'].done():
+            self._finish_planning(now)
+        else:
+            # Event-driven: continue as soon as the plan is back (the timer: time-outs only).
+            plan['future'].add_done_callback(lambda _: self.tick())
+
+    def _request_plan(self, pose, step, now):
+        """Ask the planner for the path of ``step`` from ``pose`` (None: planner not up)."""
+        if not self.plan_client.service_is_ready():
+            return None
+        stamp = conv.time_to_msg(step)  # a unique stamp pairs the request and its target
         request = GetPlan.Request()
         request.start = conv.pose_stamped(pose[:2], pose[2], stamp, self.frame_id)
         request.goal = conv.pose_stamped(self.goal, 0.0, stamp, self.frame_id)
-        self.pending = {'pose': pose, 'stamp': (stamp.sec, stamp.nanosec), 't_start': now,
-                        'future': self.plan_client.call_async(request),
-                        'deadline': now + 10.0}
-        self.state = 'planning'
-        # Event-driven: continue as soon as the plan is back (the timer is for time-outs).
-        self.pending['future'].add_done_callback(lambda _: self.tick())
+        return {'pose': pose, 'stamp': _stamp_key(step), 't_start': now,
+                'future': self.plan_client.call_async(request), 'deadline': now + 10.0}
 
     def _finish_planning(self, now):
         future = self.pending['future']
@@ -407,6 +422,11 @@ class SelaAdapter(Node):
         self.pending['deadline'] = now + float(self.get_parameter('detector_timeout').value)
         self.state = 'verdict'
         self._save()
+        # Plan the next step while the detector judges this one: the path depends only on
+        # the pose, not on what the detector decides.
+        if self.goal is not None and not self.sela.goal_reached(self.pose) \
+                and self.steps < self.max_steps:
+            self.next_plan = self._request_plan(self.pose, self.steps + 1, now)
 
     def _finish(self, success, pose):
         self.state = 'done'
@@ -443,6 +463,11 @@ class SelaAdapter(Node):
     def destroy_node(self):
         self._saver.shutdown(wait=True)  # the last snapshot reaches the disk
         super().destroy_node()
+
+
+def _stamp_key(step):
+    stamp = conv.time_to_msg(step)
+    return (stamp.sec, stamp.nanosec)
 
 
 def _ms(pending, start, end):

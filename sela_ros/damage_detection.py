@@ -6,12 +6,13 @@ predicted to produce and the displacement observed,
 
     error = ||(dx, dy)_observed - (dx, dy)_predicted|| + yaw_weight * |wrap(dyaw_o - dyaw_p)|
 
-less what the predictor itself said it did not know (``sigma_scale`` times the predictive
-standard deviation of the behaviour; 0 while the intact map is trusted), averaged over the
-last ``window`` outcomes. The detector fires when that average exceeds ``threshold``, then
-stays quiet for ``cooldown`` outcomes. Discounting the predictive uncertainty is what lets
-it tell the errors of learning in progress (new behaviours, large sigma) from a new damage
-(behaviours the GPs already know, small sigma, large error).
+averaged over the last ``window`` *judged* outcomes. Only predictions the model is sure of
+are judged: those whose predictive standard deviation is at most ``max_sigma`` (while the
+intact map is trusted, every prediction has sigma 0). The detector fires when the average
+exceeds ``threshold``, then stays quiet for ``cooldown`` outcomes. Judging only confident
+predictions is what tells the errors of learning in progress (a behaviour never tried on the
+damaged robot: large sigma) from a new damage (behaviours the GPs already know, small sigma,
+large error).
 """
 import math
 from collections import deque
@@ -25,11 +26,11 @@ class DetectorConfig:
     threshold: float = 0.25
     yaw_weight: float = 0.2
     window: int = 2
-    cooldown: int = 5
-    sigma_scale: float = 1.0
+    cooldown: int = 3
+    max_sigma: float = 0.1
 
     def __post_init__(self):
-        for name in ('threshold', 'yaw_weight', 'sigma_scale'):
+        for name in ('threshold', 'yaw_weight', 'max_sigma'):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
                     or not math.isfinite(value) or value < 0:
@@ -49,6 +50,7 @@ class Verdict:
     error: float
     mean_error: float
     fire: bool
+    judged: bool = True  # False: the prediction was too uncertain to be judged
 
 
 def prediction_error(predicted_gr, observed_gr, yaw_weight):
@@ -83,10 +85,13 @@ class DamageDetector:
             if any(not math.isfinite(float(v)) for v in value):
                 raise ValueError(f'{name} has a non-finite value: {value}')
         error = prediction_error(predicted_gr, observed_gr, self.config.yaw_weight)
-        self._errors.append(error - self.config.sigma_scale * max(float(sigma), 0.0))
-        mean_error = sum(self._errors) / len(self._errors)
         if self._since_fire is not None:
             self._since_fire += 1
+        if float(sigma) > self.config.max_sigma:
+            mean = sum(self._errors) / len(self._errors) if self._errors else float('nan')
+            return Verdict(error=error, mean_error=mean, fire=False, judged=False)
+        self._errors.append(error)
+        mean_error = sum(self._errors) / len(self._errors)
         cooling = self._since_fire is not None and self._since_fire <= self.config.cooldown
         fire = (len(self._errors) == self.config.window and mean_error > self.config.threshold
                 and not cooling)

@@ -32,7 +32,7 @@ class DamageDetectorNode(Node):
         self.declare_parameter('detection.yaw_weight', defaults.yaw_weight)
         self.declare_parameter('detection.window', defaults.window)
         self.declare_parameter('detection.cooldown', defaults.cooldown)
-        self.declare_parameter('detection.sigma_scale', defaults.sigma_scale)
+        self.declare_parameter('detection.max_sigma', defaults.max_sigma)
         self.declare_parameter('heartbeat.timeout', 5.0)
         self.declare_parameter('heartbeat.nodes', ['sim_bridge', 'planner', 'sela_adapter'])
         self.detector = DamageDetector(self._config_from({}))
@@ -80,7 +80,7 @@ class DamageDetectorNode(Node):
 
     def _config_from(self, overrides):
         values = {name: self.get_parameter(f'detection.{name}').value
-                  for name in ('threshold', 'yaw_weight', 'window', 'cooldown', 'sigma_scale')}
+                  for name in ('threshold', 'yaw_weight', 'window', 'cooldown', 'max_sigma')}
         values.update(overrides)
         return DetectorConfig(**values)
 
@@ -128,6 +128,7 @@ class DamageDetectorNode(Node):
         verdict = self.detector.observe(prediction[0], outcome.generic_reward, prediction[1])
         level = DiagnosticStatus.ERROR if verdict.fire else DiagnosticStatus.OK
         message = ('damage detected: adaptation requested' if verdict.fire
+                   else 'prediction too uncertain to judge' if not verdict.judged
                    else 'outcome as predicted' if verdict.error <= self.detector.config.threshold
                    else 'outcome off prediction')
         out = conv.diagnostic_array(conv.diagnostic_status(

@@ -59,7 +59,7 @@ class SimBridge(Node):
         self.declare_parameter('sim.dt', 1.0 / 240.0)
         self.declare_parameter('sim.gait_duration', 3.0)
         self.declare_parameter('sim.gui', False)
-        self.declare_parameter('publish_period', 0.25)
+        self.declare_parameter('publish_period', 0.5)
         self.declare_parameter('observation.noise_std', 0.01)
         self.declare_parameter('seed', 0)
         self.declare_parameter('reset_on_fall', True)

@@ -29,15 +29,18 @@ def test_small_errors_never_fire():
     assert not any(det.observe([0.2, 0, 0], [0.3, 0.05, 0.1]).fire for _ in range(20))
 
 
-def test_uncertain_predictions_are_discounted():
-    det = DamageDetector(DetectorConfig(threshold=0.25, window=1, sigma_scale=1.0))
-    assert not det.observe([0, 0, 0], [0.5, 0, 0], sigma=0.4).fire  # learning: 0.1 excess
-    assert det.observe([0, 0, 0], [0.5, 0, 0], sigma=0.05).fire     # known behaviour
+def test_only_confident_predictions_are_judged():
+    det = DamageDetector(DetectorConfig(threshold=0.25, window=2, cooldown=0, max_sigma=0.1))
+    verdict = det.observe([0, 0, 0], [0.9, 0, 0], sigma=0.4)  # a gait still being learned
+    assert not verdict.fire and not verdict.judged
+    assert not det.observe([0, 0, 0], [0.5, 0, 0], sigma=0.05).fire  # window not full
+    assert not det.observe([0, 0, 0], [0.9, 0, 0], sigma=1.0).judged
+    assert det.observe([0, 0, 0], [0.5, 0, 0], sigma=0.02).fire  # two known gaits off
 
 
 @pytest.mark.parametrize('kwargs', [{'threshold': -1}, {'threshold': math.nan},
                                     {'window': 0}, {'window': 1.5}, {'cooldown': -1},
-                                    {'sigma_scale': math.inf}])
+                                    {'max_sigma': math.inf}])
 def test_bad_config_is_a_clear_error(kwargs):
     with pytest.raises(ValueError, match='detection.'):
         DetectorConfig(**kwargs)

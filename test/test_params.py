@@ -76,12 +76,12 @@ def test_sim_bridge_start_up_parameters_are_refused_at_run_time():
 
 @given(st.floats(allow_nan=True), st.integers(-3, 3), st.integers(-3, 3),
        st.floats(allow_nan=True))
-def test_detector_config_validation(threshold, window, cooldown, sigma_scale):
+def test_detector_config_validation(threshold, window, cooldown, max_sigma):
     ok = (math.isfinite(threshold) and threshold >= 0 and window >= 1 and cooldown >= 0
-          and math.isfinite(sigma_scale) and sigma_scale >= 0)
+          and math.isfinite(max_sigma) and max_sigma >= 0)
     try:
         DetectorConfig(threshold=threshold, window=window, cooldown=cooldown,
-                       sigma_scale=sigma_scale)
+                       max_sigma=max_sigma)
         assert ok
     except ValueError as exc:
         assert not ok and 'detection.' in str(exc)
