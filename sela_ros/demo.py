@@ -15,27 +15,19 @@ import sys
 import time
 from pathlib import Path
 
+from sela_ros.experiments import arguments
+
 NODES = ('sim_bridge', 'planner', 'damage_detector', 'sela_adapter')
-
-
-def parse_goal(text):
-    try:
-        x, y = (float(v) for v in text.split(','))
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"goal must be 'X,Y' in metres, got {text!r}") from exc
-    if not (math.isfinite(x) and math.isfinite(y)):
-        raise argparse.ArgumentTypeError(f'goal must be finite, got {text!r}')
-    return x, y
 
 
 def build_parser():
     parser = argparse.ArgumentParser(
         prog='sela-demo', description='The damaged hexapod learns to walk to its goal while '
         'walking there: four ROS 2 nodes over DDS (loopback only).')
-    parser.add_argument('--damage', default='remove:middle_right',
+    parser.add_argument('--damage', type=arguments.damage, default='remove:middle_right',
                         help="damage spec, e.g. 'remove:middle_right' (default), "
                         "'shorten:front_left:0.5', 'block:rear_right.knee', 'intact'")
-    parser.add_argument('--goal', type=parse_goal, default=(2.0, 2.0), metavar='X,Y',
+    parser.add_argument('--goal', type=arguments.goal, default=(2.0, 2.0), metavar='X,Y',
                         help='goal in the odom frame, metres (default: 2,2)')
     parser.add_argument('--seed', type=int, default=0, help='observation-noise seed')
     parser.add_argument('--gui', action='store_true', help="show PyBullet's window")
@@ -58,12 +50,7 @@ def build_parser():
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
-    from sim_bridge.damage import DamageSpecError, parse_damage
-
-    try:
-        damage = parse_damage(args.damage).canonical()
-    except DamageSpecError as exc:
-        build_parser().error(str(exc))
+    damage = args.damage
     from sela_ros.ros_env import (
         ensure_ros_environment,
         executable,

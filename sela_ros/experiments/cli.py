@@ -25,6 +25,8 @@ import os
 import sys
 from dataclasses import dataclass
 
+from sela_ros.experiments import arguments
+
 
 @dataclass(frozen=True)
 class Scenario:
@@ -40,34 +42,14 @@ SCENARIOS = {
 }
 
 
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {value}')
-    return value
-
-
-def _seed(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected an integer seed, got {text!r}') from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f'expected a seed >= 0, got {value}')
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument('--replicates', type=_positive_int, required=True,
+    common.add_argument('--replicates', type=arguments.positive_int, required=True,
                         help='number of replicates of every method')
-    common.add_argument('--seed', type=_seed, default=0, help='master seed (default 0)')
+    common.add_argument('--seed', type=arguments.seed, default=0, help='master seed (default 0)')
     common.add_argument('--out', required=True,
                         help='output directory (results.json, figure.png)')
-    common.add_argument('--workers', type=_positive_int, default=1,
+    common.add_argument('--workers', type=arguments.positive_int, default=1,
                         help='processes running replicates in parallel (default 1)')
     common.add_argument('--quiet', action='store_true', help='no progress bar')
     parser = argparse.ArgumentParser(

@@ -32,6 +32,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from sela_ros.baselines import METHODS, Problem
+from sela_ros.experiments import arguments
 from sela_ros.sela import SE2Motion, SELAConfig
 
 HEXAPOD_METHODS = ('sela', 'ite_uncertainty', 'ite_4dir', 'oracle')
@@ -39,62 +40,6 @@ PAPER_NOISE_STD = 0.1  # the paper's sigma^2 = 0.01
 DEFAULT_LOOKAHEAD = 0.4
 ITE_MAX_ITERATIONS = 15  # the paper's N for the hexapod
 FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never chosen
-
-
-def _method_list(text):
-    names = [n.strip() for n in text.split(',') if n.strip()]
-    unknown = [n for n in names if n not in METHODS]
-    if not names or unknown:
-        raise argparse.ArgumentTypeError(
-            f'unknown method(s) {unknown}; choose from {", ".join(METHODS)}')
-    return names
-
-
-def _non_negative_float(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
-    if not np.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f'expected a finite number >= 0, got {text!r}')
-    return value
-
-
-def _positive_float(text):
-    value = _non_negative_float(text)
-    if value == 0:
-        raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
-    return value
-
-
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {value}')
-    return value
-
-
-def _goal(text):
-    parts = text.split(',')
-    try:
-        values = [float(v) for v in parts]
-    except ValueError:
-        values = []
-    if len(values) != 2 or not all(np.isfinite(values)):
-        raise argparse.ArgumentTypeError(f'expected the goal as X,Y (metres), got {text!r}')
-    return values
-
-
-def _damage(text):
-    from sim_bridge.damage import DamageSpecError, parse_damage
-
-    try:
-        return parse_damage(text).canonical()
-    except DamageSpecError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _archive(text):
@@ -122,23 +67,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--archive', type=_archive, default=str(default_archive_path()),
                         help='behaviour-performance map (.npz; default: the shipped '
                              'sela_ros/data/hexapod_archive.npz)')
-    parser.add_argument('--damage', type=_damage, default='remove:middle_right',
+    parser.add_argument('--damage', type=arguments.damage, default='remove:middle_right',
                         help="damage spec, e.g. remove:middle_right (default, the paper's), "
                              'shorten:front_left:0.5, block:rear_right.knee=0.2')
-    parser.add_argument('--goal', type=_goal, default=[2.0, 2.0],
+    parser.add_argument('--goal', type=arguments.goal, default=[2.0, 2.0],
                         help='goal X,Y in metres from the start (default 2,2)')
-    parser.add_argument('--noise-std', type=_non_negative_float, default=PAPER_NOISE_STD,
+    parser.add_argument('--noise-std', type=arguments.non_negative_float, default=PAPER_NOISE_STD,
                         help='std (m) of the noise on observed positions (default '
                              "%(default)s: the paper's sigma^2 = 0.01)")
-    parser.add_argument('--lookahead', type=_positive_float, default=DEFAULT_LOOKAHEAD,
+    parser.add_argument('--lookahead', type=arguments.positive_float, default=DEFAULT_LOOKAHEAD,
                         help='reward selection layer: waypoint distance along the straight '
                              'path to the goal (m, default %(default)s)')
-    parser.add_argument('--methods', type=_method_list, default=list(HEXAPOD_METHODS),
+    parser.add_argument('--kernel-sigma', type=arguments.positive_float,
+                        default=SELAConfig().gp_kernel_sigma,
+                        help="gp.kernel.sigma on normalised descriptors (default %(default)s, "
+                             "the paper's)")
+    parser.add_argument('--alpha', type=arguments.non_negative_float,
+                        default=SELAConfig().acquisition_ucb_alpha,
+                        help="acquisition.ucb.alpha (default %(default)s, the paper's)")
+    parser.add_argument('--methods', type=arguments.method_list, default=list(HEXAPOD_METHODS),
                         help='comma-separated methods (default: %(default)s; also '
                              'random_babbling)')
-    parser.add_argument('--max-steps', type=_positive_int, default=100,
+    parser.add_argument('--max-steps', type=arguments.positive_int, default=100,
                         help='task-step cap; a run that hits it fails (default %(default)s)')
-    parser.add_argument('--ite-iterations', type=_positive_int, default=ITE_MAX_ITERATIONS,
+    parser.add_argument('--ite-iterations', type=arguments.positive_int,
+                        default=ITE_MAX_ITERATIONS,
                         help="IT&E trials (ite_uncertainty) and M-BOA trials per direction "
                              "(ite_4dir) at most (default %(default)s, the paper's N)")
     parser.add_argument('--oracle-cache', default=None,
@@ -156,13 +109,18 @@ def ite_targets(prior_gr) -> np.ndarray:
 
 
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
-                 ite_iterations=ITE_MAX_ITERATIONS) -> Problem:
+                 ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None) -> Problem:
+    defaults = SELAConfig()
+    config = SELAConfig(planner_lookahead=lookahead,
+                        gp_kernel_sigma=kernel_sigma or defaults.gp_kernel_sigma,
+                        acquisition_ucb_alpha=defaults.acquisition_ucb_alpha if alpha is None
+                        else alpha)
     return Problem(
         candidates=archive.normalised_descriptors(),
         prior_gr=archive.generic_reward,
         motion=SE2Motion(),
         goal=np.asarray(goal, dtype=float),
-        config=SELAConfig(planner_lookahead=lookahead),
+        config=config,
         max_steps=max_steps,
         true_gr=true_gr,
         ite_targets=ite_targets(archive.generic_reward),
@@ -188,7 +146,7 @@ def _worker_state(archive_path):
 def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
-     ite_iterations, oracle_gr) = job
+     ite_iterations, oracle_gr, kernel_sigma, alpha) = job
     from sim_bridge.experiment_env import HexapodEnvironment
 
     archive = _worker_state(archive_path)
@@ -199,7 +157,8 @@ def run_method(job):
                             seed=np.random.default_rng(env_seed),
                             dt=settings['dt'], gait_duration=settings['gait_duration']) as env:
         problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
-                               ite_iterations=ite_iterations)
+                               ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
+                               alpha=alpha)
         result = METHODS[name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         return {'success': bool(result.success), 'steps': int(result.steps),
@@ -233,7 +192,7 @@ def run(args, progress=None) -> dict:
         for name, child in zip(args.methods, seed.spawn(len(args.methods))):
             jobs.append((name, child, os.path.abspath(args.archive), args.damage, args.goal,
                          args.noise_std, args.lookahead, args.max_steps,
-                         args.ite_iterations, oracle_gr))
+                         args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -277,6 +236,8 @@ def run(args, progress=None) -> dict:
                            'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,
                            'planner': 'straight_line', 'goal_eps': SELAConfig().goal_eps,
                            'ite_max_iterations': args.ite_iterations,
+                           'gp.kernel.sigma': args.kernel_sigma,
+                           'acquisition.ucb.alpha': args.alpha,
                            'archive': os.path.abspath(args.archive),
                            'archive_checksum': archive_checksum(archive.params),
                            'num_behaviours': len(archive),

@@ -7,50 +7,22 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from sela_ros.baselines import METHODS
+from sela_ros.experiments import arguments
 from sela_ros.toy import PAPER_NOISE_STD, ToyWorld, toy_problem
 
 DEFAULT_METHODS = ('sela', 'random_babbling', 'ite_4dir', 'oracle')
 NUM_BEHAVIOURS = 1000
 
 
-def _method_list(text):
-    names = [n.strip() for n in text.split(',') if n.strip()]
-    unknown = [n for n in names if n not in METHODS]
-    if not names or unknown:
-        raise argparse.ArgumentTypeError(
-            f'unknown method(s) {unknown}; choose from {", ".join(METHODS)}')
-    return names
-
-
-def _non_negative_float(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
-    if not np.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f'expected a finite number >= 0, got {text!r}')
-    return value
-
-
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {value}')
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment toy`` (the common ones are added by the CLI)."""
-    parser.add_argument('--noise-std', type=_non_negative_float, default=PAPER_NOISE_STD,
+    parser.add_argument('--noise-std', type=arguments.non_negative_float, default=PAPER_NOISE_STD,
                         help='std of the noise on observed positions (default %(default)s: '
                              "the paper's sigma^2 = 0.01)")
-    parser.add_argument('--methods', type=_method_list, default=list(DEFAULT_METHODS),
+    parser.add_argument('--methods', type=arguments.method_list, default=list(DEFAULT_METHODS),
                         help='comma-separated methods (default: %(default)s; also '
                              'ite_uncertainty)')
-    parser.add_argument('--max-steps', type=_positive_int, default=100,
+    parser.add_argument('--max-steps', type=arguments.positive_int, default=100,
                         help='task-step cap; a run that hits it fails (default %(default)s)')
 
 

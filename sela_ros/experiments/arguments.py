@@ -1,0 +1,74 @@
+"""argparse value types shared by the command-line tools: a bad value is a usage error
+(exit code 2, a message saying what was expected), never a traceback."""
+import argparse
+import math
+
+from sela_ros.baselines import METHODS
+
+
+def non_negative_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f'expected a finite number >= 0, got {text!r}')
+    return value
+
+
+def positive_float(text):
+    value = non_negative_float(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
+    return value
+
+
+def _integer(text, what='an integer'):
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected {what}, got {text!r}') from None
+
+
+def positive_int(text):
+    value = _integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {value}')
+    return value
+
+
+def seed(text):
+    value = _integer(text, 'an integer seed')
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'expected a seed >= 0, got {value}')
+    return value
+
+
+def method_list(text):
+    names = [n.strip() for n in text.split(',') if n.strip()]
+    unknown = [n for n in names if n not in METHODS]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(
+            f'unknown method(s) {unknown}; choose from {", ".join(METHODS)}')
+    return names
+
+
+def goal(text):
+    """``X,Y`` in metres."""
+    try:
+        values = [float(v) for v in text.split(',')]
+    except ValueError:
+        values = []
+    if len(values) != 2 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f'expected the goal as X,Y (metres), got {text!r}')
+    return values
+
+
+def damage(text):
+    """A damage spec (sim_bridge.damage); returns its canonical form."""
+    from sim_bridge.damage import DamageSpecError, parse_damage
+
+    try:
+        return parse_damage(text).canonical()
+    except DamageSpecError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
