@@ -87,7 +87,7 @@ class PlannerNode(Node):
         # A typed empty default: ROS cannot infer the type of [], so declare DOUBLE_ARRAY.
         self.declare_parameter('map.obstacles', Parameter.Type.DOUBLE_ARRAY)
         self.declare_parameter('map.file', '')
-        self.declare_parameter('planner.lookahead', 0.5)
+        self.declare_parameter('planner.lookahead', 0.6)
         self.declare_parameter('frame_id', 'odom')
 
         self.frame_id = self.get_parameter('frame_id').value

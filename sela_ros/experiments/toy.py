@@ -8,7 +8,7 @@ import numpy as np
 
 from sela_ros.baselines import METHODS
 from sela_ros.experiments import arguments
-from sela_ros.toy import PAPER_NOISE_STD, ToyWorld, toy_problem
+from sela_ros.toy import ToyWorld, toy_problem
 
 DEFAULT_METHODS = ('sela', 'random_babbling', 'ite_4dir', 'oracle')
 NUM_BEHAVIOURS = 1000
@@ -16,9 +16,8 @@ NUM_BEHAVIOURS = 1000
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment toy`` (the common ones are added by the CLI)."""
-    parser.add_argument('--noise-std', type=arguments.non_negative_float, default=PAPER_NOISE_STD,
-                        help='std of the noise on observed positions (default %(default)s: '
-                             "the paper's sigma^2 = 0.01)")
+    parser.add_argument('--noise-std', type=arguments.non_negative_float,
+                        default=arguments.DEFAULT_NOISE_STD, help=arguments.NOISE_HELP)
     parser.add_argument('--methods', type=arguments.method_list, default=list(DEFAULT_METHODS),
                         help='comma-separated methods (default: %(default)s; also '
                              'ite_uncertainty)')
