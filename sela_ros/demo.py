@@ -210,9 +210,13 @@ def run_client(args, damage, out, procs):
     print(f"sela-demo: {verdict} in {summary['steps']} steps "
           f"(adaptation from step {summary['learning_started_at_step']}, "
           f"{summary['detections']} detection(s)), final distance "
-          f"{summary['final_distance_to_goal']} m, {wall:.1f} s wall; "
+          f"{_metres(summary['final_distance_to_goal'])}, {wall:.1f} s wall; "
           f"wrote {out}/summary.json, trajectory.png, mission.mcap", flush=True)
     return summary
+
+
+def _metres(value):
+    return 'unknown' if value is None else f'{value:.3f} m'
 
 
 def plot_trajectory(path, trajectory, steps, goal, damage):
