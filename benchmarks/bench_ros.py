@@ -114,6 +114,8 @@ def overhead(args):
     print(f'over DDS, median per step: choosing (plan + target + ask) '
           f'{decide[len(decide) // 2]:.1f} ms, command -> outcome '
           f'{execute[len(execute) // 2]:.1f} ms')
+    gaps = [b[0] - a[0] for a, b in zip(times, times[1:])]
+    print('over DDS, step intervals (ms): ' + ' '.join(f'{g * 1000:.0f}' for g in gaps))
     print(f'ROS overhead per step: {(dds_per_step / proc_per_step - 1) * 100:+.1f}% '
           '(target: at most +10%)')
 
