@@ -121,11 +121,14 @@ def overhead(args):
 
 
 def long_run(args):
-    config = yaml.safe_load(Path(CONFIG).read_text())
-    width = config['planner']['ros__parameters']['map.width']
+    config = yaml.safe_load(Path(CONFIG).read_text())['planner']['ros__parameters']
+    # A goal in the middle of the map that can never be reached (goal.eps 1 mm): the robot
+    # walks to it and keeps stepping around it without leaving the map.
+    centre = [o + size / 2 for o, size in zip(config['map.origin'],
+                                               (config['map.width'], config['map.height']))]
     overrides = {'sela_adapter': {'max_steps': args.steps + 5, 'goal.eps': 0.001}}
-    times, memory, _ = dds_mission((width - 1.2, width - 1.2), args.seed, args.damage,
-                                   overrides, steps_wanted=args.steps)
+    times, memory, _ = dds_mission(centre, args.seed, args.damage, overrides,
+                                   steps_wanted=args.steps, timeout=600)
     k = min(10, len(times) // 4)
     first = (times[k][0] - times[0][0]) / k
     last = (times[-1][0] - times[-1 - k][0]) / k
