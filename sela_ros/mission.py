@@ -156,6 +156,3 @@ def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
             on_step(record)
     return bool(sela.goal_reached(pose)), logic
 
-
-def finite_or_none(value):
-    return value if isinstance(value, (int, float)) and math.isfinite(value) else None
