@@ -15,20 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-def wrap_angle(angle):
-    """Wrap to (-pi, pi]."""
-    wrapped = math.remainder(float(angle), 2.0 * math.pi)
-    return math.pi if wrapped == -math.pi else wrapped
-
-
-def generic_reward_from_poses(start_pose, end_pose):
-    """afun: (dx, dy, dyaw) of ``end_pose`` in the frame of ``start_pose`` (x, y, yaw)."""
-    x0, y0, yaw0 = (float(v) for v in start_pose)
-    x1, y1, yaw1 = (float(v) for v in end_pose)
-    c, s = math.cos(yaw0), math.sin(yaw0)
-    wx, wy = x1 - x0, y1 - y0
-    return np.array([c * wx + s * wy, -s * wx + c * wy, wrap_angle(yaw1 - yaw0)])
+from sim_bridge.hexapod import generic_reward  # afun, the same as the simulator's
 
 
 @dataclass
@@ -98,7 +85,7 @@ class ObservedHexapod:
         observed_end = self._observe(outcome.end_pose)
         self._observed = observed_end
         return Execution(
-            observed_generic_reward=generic_reward_from_poses(observed_start, observed_end),
+            observed_generic_reward=generic_reward(observed_start, observed_end),
             observed_start=observed_start.copy(), observed_end=observed_end.copy(),
             true_start=np.asarray(outcome.start_pose, float),
             true_end=np.asarray(outcome.end_pose, float), fallen=bool(outcome.fallen),
