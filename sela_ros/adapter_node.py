@@ -1,13 +1,16 @@
 """The ``sela_adapter`` node: the archive, the GPs and UCB; chooses gaits and learns.
 
-Each step (a small state machine driven by a wall-clock timer, so no callback ever waits):
+Each step (a small state machine driven by events, so no callback ever waits):
 
 1. call ``/planner/make_plan`` from the latest observed pose to the goal, and take the
-   waypoint the planner publishes on ``/sela/target`` for that request (same stamp);
-2. ``SELA.ask`` picks a behaviour; publish the prediction on ``/sela/prediction`` and the
-   36 parameters on ``/hexapod/behavior`` (with a command id);
-3. the matching ``/hexapod/behavior_outcome`` arrives: learn from it when adapting, publish
-   the specialised reward observed on ``/sela/reward``;
+   waypoint the planner publishes on ``/sela/target`` for that request (same stamp: seconds
+   the step number, nanoseconds a random nonce); the answer is only awaited when no target
+   comes (planning failed);
+2. ``SELA.ask`` picks a behaviour; publish the 36 parameters on ``/hexapod/behavior`` (with a
+   command id) and the prediction on ``/sela/prediction``;
+3. the matching ``/hexapod/behavior_outcome`` arrives: request the next step's plan from the
+   new pose at once (the planner works while this node learns), learn from the outcome when
+   adapting, publish the specialised reward observed on ``/sela/reward``;
 4. wait (at most ``detector_timeout`` s) for the damage detector's verdict on that outcome on
    ``/diagnostics``: if it decided to adapt, it has called ``/sela_adapter/adapt`` first.
 
@@ -23,6 +26,7 @@ good one with ``ros2 param set /sela_adapter archive PATH``.
 """
 import math
 import os
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -48,6 +52,7 @@ from sela_ros.sela import Decision
 
 DETECTOR_STATUS = 'damage_detector: prediction error'
 MISSION_STATUS = 'sela_adapter: mission'
+TICK_PERIOD = 0.25  # s (wall)
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps')
 
 
@@ -82,6 +87,9 @@ class SelaAdapter(Node):
         self.next_id = 1
         self.pending = {}
         self.targets = {}
+        self.verdicts = deque(maxlen=16)  # behaviour ids the detector judged lately
+        self.adapt_after_outcome = False
+        self._nonce = np.random.default_rng()
         self.steps = 0
         self.next_plan = None
         self.failed_steps = 0
@@ -114,7 +122,10 @@ class SelaAdapter(Node):
         else:
             if self.get_parameter('resume').value:
                 self._resume()
-        self.timer = self.create_timer(0.05, self.tick, clock=self.wall)
+        # Steps advance on events (goal, target, outcome, verdict); this timer only catches
+        # time-outs and start-up (planner not up yet), so it is slow: every wake-up of this
+        # process costs the simulator CPU time on a small machine.
+        self.timer = self.create_timer(TICK_PERIOD, self.tick, clock=self.wall)
 
     # --- archive and persistence ---------------------------------------------------------
 
@@ -220,6 +231,7 @@ class SelaAdapter(Node):
             return  # the latched goal again (e.g. after a restart): the mission goes on
         self.goal = goal
         self.next_plan = None
+        self.targets.clear()
         if self.sela is not None:
             self.sela.set_goal(goal)
         self.steps = 0
@@ -259,30 +271,46 @@ class SelaAdapter(Node):
         self._on_outcome(outcome)
 
     def diagnostics_callback(self, msg):
-        if self.state != 'verdict':
-            return
         for status in msg.status:
             if status.name != DETECTOR_STATUS:
                 continue
-            values = conv.status_values(status)
-            if values.get('behavior_id') == str(self.pending.get('id')):
-                self.state = 'ready'
-                self.tick()
+            # Kept even when it comes before the outcome it judges: the detector and this
+            # node hear the outcome independently, and on a busy machine either may be first.
+            self.verdicts.append(conv.status_values(status).get('behavior_id'))
+        self._verdict_heard()
+
+    def _verdict_heard(self):
+        if self.state == 'verdict' and str(self.pending.get('id')) in self.verdicts:
+            self.state = 'ready'
+            self.tick()
 
     def adapt_callback(self, request, response):
         if self.logic is None:
             response.success = False
             response.message = 'no archive loaded: set the archive parameter first'
             return response
+        response.success = True
+        if self.state == 'executing':
+            # The detector judged an outcome this node has not processed yet (or a user
+            # asked mid-gait): adapt from that outcome, as soon as it is processed.
+            self.adapt_after_outcome = True
+            response.message = ('adaptation will ' + ('restart' if self.logic.adapting
+                                                       else 'start') +
+                                f" from the outcome of command {self.pending['id']}")
+            self.get_logger().warn(response.message)
+            return response
+        response.message = self._adapt()
+        return response
+
+    def _adapt(self):
         restarting = self.logic.adapting
         self.logic.adapt()
-        response.success = True
-        response.message = ('adaptation restarted from scratch' if restarting
-                            else 'adaptation started') + \
+        message = ('adaptation restarted from scratch' if restarting
+                   else 'adaptation started') + \
             f' ({len(self.sela.observations[0])} observation(s))'
-        self.get_logger().warn(response.message)
+        self.get_logger().warn(message)
         self._save()
-        return response
+        return message
 
     def clear_callback(self, request, response):
         if self.logic is None:
@@ -324,7 +352,7 @@ class SelaAdapter(Node):
     # --- the step state machine ----------------------------------------------------------
 
     def tick(self):
-        """Advance the step state machine; called by events and by a 50 ms wall timer."""
+        """Advance the step state machine: on events, and on a slow timer for time-outs."""
         now = self.wall.now().nanoseconds * 1e-9
         if self.state == 'ready':
             self._start_step(now)
@@ -349,7 +377,7 @@ class SelaAdapter(Node):
         plan = self.next_plan
         self.next_plan = None
         if plan is None or not np.array_equal(plan['pose'], pose) or \
-                plan['stamp'] != _stamp_key(self.steps + 1):
+                plan['step'] != self.steps + 1:
             plan = self._request_plan(pose, self.steps + 1, now)
             if plan is None:
                 return
@@ -366,37 +394,40 @@ class SelaAdapter(Node):
         """Ask the planner for the path of ``step`` from ``pose`` (None: planner not up)."""
         if not self.plan_client.service_is_ready():
             return None
-        stamp = conv.time_to_msg(step)  # a unique stamp pairs the request and its target
+        # The stamp pairs the request with the target the planner publishes for it: seconds
+        # are the step number, nanoseconds a fresh random nonce (no stale target can match).
+        stamp = conv.time_to_msg(step)
+        stamp.nanosec = int(self._nonce.integers(0, 1_000_000_000))
         request = GetPlan.Request()
         request.start = conv.pose_stamped(pose[:2], pose[2], stamp, self.frame_id)
         request.goal = conv.pose_stamped(self.goal, 0.0, stamp, self.frame_id)
-        return {'pose': pose, 'stamp': _stamp_key(step), 't_start': now,
+        return {'pose': pose, 'step': step, 'stamp': (stamp.sec, stamp.nanosec), 't_start': now,
                 'future': self.plan_client.call_async(request), 'deadline': now + 10.0}
 
     def _finish_planning(self, now):
-        future = self.pending['future']
-        if not future.done():
-            if now > self.pending['deadline']:
+        # The planner publishes the target (paired by stamp) before it answers the request:
+        # go on as soon as the target is here. It publishes none when planning fails, and
+        # then the answer (an empty plan) says so.
+        waypoint = self.targets.pop(self.pending['stamp'], None)
+        if waypoint is None:
+            future = self.pending['future']
+            if future.done() and not future.result().plan.poses:
+                self.get_logger().error('no plan to the goal (see /diagnostics); waiting for '
+                                        'a new goal')
+                self.steps -= 1
+                self.state = 'idle'
+            elif now > self.pending['deadline']:
                 self.get_logger().error('planner did not answer; retrying')
                 self.steps -= 1
                 self.state = 'ready'
             return
-        if not future.result().plan.poses:
-            self.get_logger().error('no plan to the goal (see /diagnostics); waiting for a '
-                                    'new goal')
-            self.steps -= 1
-            self.state = 'idle'
-            return
-        waypoint = self.targets.pop(self.pending['stamp'], None)
-        if waypoint is None:
-            return  # the target message is still on its way
         self.targets.clear()
         decision = self.logic.decide(self.pending['pose'], waypoint)
         self.pending.update(decision=decision, waypoint=waypoint, id=self.next_id)
         self.next_id += 1
+        self._send(now)
         self.prediction_pub.publish(conv.prediction_to_msg(
             self.pending['id'], decision.predicted_gr, self.logic.prediction_sigma(decision)))
-        self._send(now)
         self._save()
 
     def _send(self, now):
@@ -408,25 +439,30 @@ class SelaAdapter(Node):
 
     def _on_outcome(self, outcome):
         decision = self.pending['decision']
-        self.pending['t_outcome'] = self.wall.now().nanoseconds * 1e-9
+        now = self.pending['t_outcome'] = self.wall.now().nanoseconds * 1e-9
+        self.pose = outcome.end_pose
+        # First ask for the next step's plan (it depends only on the pose, not on what is
+        # learnt or on the detector's verdict): the planner works while this node learns.
+        self.next_plan = None
+        if self.goal is not None and not self.sela.goal_reached(self.pose) \
+                and self.steps < self.max_steps:
+            self.next_plan = self._request_plan(self.pose, self.steps + 1, now)
         record = self.logic.outcome(decision, self.pending['pose'], outcome.generic_reward,
                                     fallen=outcome.fallen)
-        self.pose = outcome.end_pose
         if outcome.fallen:
             self.failed_steps += 1
             self._error(f'step {self.steps} failed: the robot fell (sim_bridge righted it)')
         reward = -float(np.linalg.norm(self.pending['waypoint'] - outcome.end_pose[:2]))
         self.reward_pub.publish(Float64(data=reward))
         self._publish_status(DiagnosticStatus.OK, 'step', record, reward)
-        now = self.wall.now().nanoseconds * 1e-9
         self.pending['deadline'] = now + float(self.get_parameter('detector_timeout').value)
         self.state = 'verdict'
-        self._save()
-        # Plan the next step while the detector judges this one: the path depends only on
-        # the pose, not on what the detector decides.
-        if self.goal is not None and not self.sela.goal_reached(self.pose) \
-                and self.steps < self.max_steps:
-            self.next_plan = self._request_plan(self.pose, self.steps + 1, now)
+        if self.adapt_after_outcome:
+            self.adapt_after_outcome = False
+            self._adapt()  # saves
+        else:
+            self._save()
+        self._verdict_heard()
 
     def _finish(self, success, pose):
         self.state = 'done'
@@ -463,11 +499,6 @@ class SelaAdapter(Node):
     def destroy_node(self):
         self._saver.shutdown(wait=True)  # the last snapshot reaches the disk
         super().destroy_node()
-
-
-def _stamp_key(step):
-    stamp = conv.time_to_msg(step)
-    return (stamp.sec, stamp.nanosec)
 
 
 def _ms(pending, start, end):

@@ -47,7 +47,9 @@ class DamageDetectorNode(Node):
                                  self.outcome_callback, OUTCOME_QOS)
         self.adapt_client = self.create_client(Trigger, '/sela_adapter/adapt')
         self.add_on_set_parameters_callback(self.parameters_callback)
-        self.create_timer(0.05, self.flush_verdicts, clock=self.wall)
+        # Verdicts go out when the adapter answers (a done callback); this timer only
+        # catches an adapter that does not answer within ADAPT_TIMEOUT.
+        self.create_timer(0.25, self.flush_verdicts, clock=self.wall)
         # Watch the other nodes' heartbeats: a silent node is reported on /diagnostics.
         self.watch = SilenceWatch(self.get_parameter('heartbeat.nodes').value,
                                   self.get_parameter('heartbeat.timeout').value)

@@ -189,10 +189,11 @@ class PlannerNode(Node):
     def _plan(self, start, goal, stamp):
         path_xy = self.planner(start, goal)
         waypoint = next_waypoint(path_xy, start, self.lookahead)
-        path = conv.path_to_msg(path_xy, stamp=stamp, frame_id=self.frame_id)
-        self.path_pub.publish(path)
+        # The target first: the adapter waits for it (paired by stamp), not for the path.
         self.target_pub.publish(conv.point_stamped(waypoint, stamp=stamp,
                                                    frame_id=self.frame_id))
+        path = conv.path_to_msg(path_xy, stamp=stamp, frame_id=self.frame_id)
+        self.path_pub.publish(path)
         return path
 
     def _report(self, level, message):
