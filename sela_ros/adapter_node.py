@@ -412,8 +412,8 @@ class SelaAdapter(Node):
         if waypoint is None:
             future = self.pending['future']
             if future.done() and not future.result().plan.poses:
-                self.get_logger().error('no plan to the goal (see /diagnostics); waiting for '
-                                        'a new goal')
+                self._error('no plan to the goal (the planner says why on /diagnostics); '
+                            'waiting for a new goal')
                 self.steps -= 1
                 self.state = 'idle'
             elif now > self.pending['deadline']:

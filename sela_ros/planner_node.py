@@ -24,7 +24,7 @@ from rclpy.parameter import Parameter
 from sela_ros import conversions as conv
 from sela_ros.heartbeat import add_heartbeat
 from sela_ros.node_main import run_node
-from sela_ros.params import first_problem, positive_number, startup_only
+from sela_ros.params import first_problem, non_negative_number, positive_number, startup_only
 from sela_ros.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
 from sela_ros.qos import LATCHED_QOS, STATE_QOS
 
@@ -88,13 +88,20 @@ class PlannerNode(Node):
         self.declare_parameter('map.obstacles', Parameter.Type.DOUBLE_ARRAY)
         self.declare_parameter('map.file', '')
         self.declare_parameter('planner.lookahead', 0.6)
+        self.declare_parameter('planner.inflation', 0.25)
         self.declare_parameter('frame_id', 'odom')
 
         self.frame_id = self.get_parameter('frame_id').value
         self.lookahead = float(self.get_parameter('planner.lookahead').value)
         self.map_error = None
         self.grid = self._load_grid()
-        self.planner = GridPlanner(self.grid)
+        inflation = self.get_parameter('planner.inflation').value
+        problem = first_problem([('planner.inflation', inflation)],
+                                {'planner.inflation': non_negative_number(' (m)')})
+        if problem:
+            self.get_logger().error(f'{problem}; planning without inflation')
+            inflation = 0.0
+        self.planner = GridPlanner(self.grid, inflation=float(inflation))
         self.pose = None
         self.goal = None
 
@@ -113,7 +120,8 @@ class PlannerNode(Node):
             self._report(DiagnosticStatus.ERROR, self.map_error)
         self.get_logger().info(f'map {self.grid.width}x{self.grid.height} cells of '
                                f'{self.grid.resolution} m, bounds {self.grid.bounds_text()}, '
-                               f'lookahead {self.lookahead} m')
+                               f'lookahead {self.lookahead} m, inflation '
+                               f'{self.planner.inflation} m')
 
     def _load_grid(self):
         path = self.get_parameter('map.file').value
@@ -136,7 +144,8 @@ class PlannerNode(Node):
             return []  # no obstacles given: ROS cannot hold an empty typed array in YAML
 
     def parameters_callback(self, params):
-        rules = {'planner.lookahead': positive_number(' (m)'), 'frame_id': startup_only}
+        rules = {'planner.lookahead': positive_number(' (m)'), 'frame_id': startup_only,
+                 'planner.inflation': non_negative_number(' (m)')}
         rules.update({p.name: startup_only for p in params if p.name.startswith('map.')})
         problem = first_problem(((p.name, p.value) for p in params), rules)
         if problem:
@@ -144,6 +153,8 @@ class PlannerNode(Node):
         for param in params:
             if param.name == 'planner.lookahead':
                 self.lookahead = float(param.value)
+            elif param.name == 'planner.inflation':
+                self.planner = GridPlanner(self.grid, inflation=float(param.value))
         return SetParametersResult(successful=True)
 
     def odom_callback(self, msg):

@@ -255,21 +255,95 @@ def next_waypoint(path, pose_xy, lookahead: float) -> np.ndarray:
     return path[-1].copy()
 
 
+def inflate(grid: OccupancyGrid, radius: float) -> OccupancyGrid:
+    """The grid with every obstacle grown by ``radius`` metres (a disc), for clearance."""
+    radius = float(radius)
+    if not (math.isfinite(radius) and radius >= 0.0):
+        raise ValueError(f'inflation radius must be a finite number >= 0, got {radius!r}')
+    r = int(math.floor(radius / grid.resolution + 1e-9))
+    if r == 0 or not grid.occupied.any():
+        return grid
+    offsets = [(dx, dy) for dx in range(-r, r + 1) for dy in range(-r, r + 1)
+               if dx * dx + dy * dy <= r * r]
+    occupied = grid.occupied.copy()
+    ys, xs = np.nonzero(grid.occupied)
+    h, w = occupied.shape
+    for dx, dy in offsets:
+        occupied[np.clip(ys + dy, 0, h - 1), np.clip(xs + dx, 0, w - 1)] = True
+    return OccupancyGrid(occupied, grid.resolution, grid.origin)
+
+
+def nearest_free_cell(grid: OccupancyGrid, cell):
+    """The free cell closest to ``cell`` (breadth-first, 8-connected), or None."""
+    start = tuple(cell)
+    if grid.is_free(start):
+        return start
+    seen = {start}
+    frontier = [start]
+    while frontier:
+        nxt = []
+        for c in frontier:
+            for dx, dy, _ in _MOVES:
+                n = (c[0] + dx, c[1] + dy)
+                if n in seen or not (0 <= n[0] < grid.width and 0 <= n[1] < grid.height):
+                    continue
+                if grid.is_free(n):
+                    return n
+                seen.add(n)
+                nxt.append(n)
+        frontier = nxt
+    return None
+
+
 class GridPlanner:
     """Planner callable ``(start_xy, goal_xy) -> path (n, 2)``: A* on a grid, then smoothed.
+
+    Paths keep ``inflation`` metres away from obstacles (A* and smoothing run on the inflated
+    grid). A robot that has strayed into an obstacle or its margin is not stuck: the path
+    leaves from there to the nearest free cell. A goal inside an obstacle is refused
+    (:class:`InObstacleError`); a goal within the margin is reached through the nearest free
+    cell.
 
     Args:
         grid: the occupancy grid.
         smooth: shortcut the A* path by line of sight (default True).
+        inflation: clearance from obstacles in metres (default 0).
     """
 
-    def __init__(self, grid: OccupancyGrid, smooth: bool = True):
+    def __init__(self, grid: OccupancyGrid, smooth: bool = True, inflation: float = 0.0):
         self.grid = grid
         self.smooth = smooth
+        self.inflation = float(inflation)
+        self.planning_grid = inflate(grid, self.inflation)
 
     def __call__(self, start_xy, goal_xy) -> np.ndarray:
-        path = astar(self.grid, start_xy, goal_xy)
-        return smooth_path(self.grid, path) if self.smooth else path
+        start_xy = np.asarray(start_xy, dtype=float).reshape(-1)[:2]
+        goal_xy = np.asarray(goal_xy, dtype=float).reshape(-1)[:2]
+        try:
+            start = self.grid.world_to_cell(start_xy)
+        except OffMapError as err:
+            raise OffMapError(f'start {err}') from None
+        goal = _endpoint_cell(self.grid, goal_xy, 'goal')  # in a real obstacle: refused
+        grid = self.planning_grid
+        free_start, free_goal = nearest_free_cell(grid, start), nearest_free_cell(grid, goal)
+        if free_start is None or free_goal is None:
+            raise UnreachableError(f'no free cell on the map {grid.bounds_text()} '
+                                   f'(inflation {self.inflation} m)')
+        cells, _ = astar_cells(grid, free_start, free_goal)
+        points = [start_xy]
+        if free_start != start:
+            points.append(grid.cell_to_world(free_start))  # out of the obstacle first
+        points += [grid.cell_to_world(c) for c in cells[1:-1]]
+        if free_goal != goal and len(cells) > 1:
+            points.append(grid.cell_to_world(free_goal))
+        points.append(goal_xy)
+        path = np.array(points)
+        if not self.smooth:
+            return path
+        # Smooth the part that lies in free space; the way out of an obstacle stays as is.
+        k = 1 if free_start != start else 0
+        return np.vstack([path[:k], smooth_path(grid, path[k:])]) if k else \
+            smooth_path(grid, path)
 
 
 def straight_line_planner(start_xy, goal_xy) -> np.ndarray:

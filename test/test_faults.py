@@ -186,3 +186,34 @@ def test_killed_nodes_come_back_and_the_mission_completes(graph):
     client.spin_until(lambda: diag.finished(), 400, 'the end of the mission')
     assert diag.finished()[-1]['success'] == 'True', nodes.logs()
     assert all(nodes.alive().values()), nodes.logs()
+
+
+OBSTACLE = (0.6, 0.6, 1.2, 1.2)
+
+
+@pytest.mark.parametrize('graph', [{'planner': {'map.obstacles': list(OBSTACLE)}}],
+                         indirect=True)
+def test_goal_inside_an_obstacle_is_refused_and_the_next_goal_goes_around_it(graph):
+    nodes, client = graph
+    diag = Diagnostics(client)
+    paths = []
+    client.node.create_subscription(conv.Path, '/planner/path', paths.append, LATCHED_QOS)
+    goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+    goal_pub.publish(conv.pose_stamped((0.9, 0.9), frame_id='odom'))
+    client.spin_until(lambda: any('inside an obstacle' in e for e in diag.errors('planner')),
+                      60, 'the goal inside the obstacle reported by the planner')
+    client.spin_until(lambda: any('no plan to the goal' in e
+                                  for e in diag.errors('sela_adapter')), 60,
+                      'the adapter saying it has no plan')
+    assert not diag.steps()  # no gait was sent toward a goal that cannot be reached
+    # A goal behind the obstacle: reached, on paths that never cross it.
+    goal_pub.publish(conv.pose_stamped((1.5, 1.5), frame_id='odom'))
+    client.spin_until(lambda: diag.finished(), 300, 'the end of the mission')
+    assert diag.finished()[-1]['success'] == 'True', nodes.logs()
+    assert paths
+    for path in paths:
+        for pose in path.poses:
+            x, y = pose.pose.position.x, pose.pose.position.y
+            assert not (OBSTACLE[0] < x < OBSTACLE[2] and OBSTACLE[1] < y < OBSTACLE[3]), \
+                (x, y)
+    assert all(nodes.alive().values()), nodes.logs()

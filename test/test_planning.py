@@ -113,3 +113,42 @@ def test_next_waypoint():
     np.testing.assert_allclose(next_waypoint(path, (1.0, 0.9), 0.5), [1.0, 1.0])
     with pytest.raises(ValueError):
         next_waypoint(path, (0, 0), 0.0)
+
+
+def _grid_with_block():
+    g = OccupancyGrid.empty(0.0, 4.0, 0.0, 4.0, 0.1)
+    occupied = g.occupied.copy()
+    occupied[15:25, 15:25] = True  # a 1 m block at [1.5, 2.5]^2
+    return OccupancyGrid(occupied, 0.1, (0.0, 0.0))
+
+
+def test_inflated_paths_keep_their_clearance_from_obstacles():
+    grid = _grid_with_block()
+    for inflation in (0.0, 0.3):
+        path = GridPlanner(grid, inflation=inflation)((0.5, 0.5), (3.5, 3.5))
+        # Every segment, sampled finely, keeps `inflation` (minus half a cell) from the block.
+        for a, b in zip(path, path[1:]):
+            for t in np.linspace(0.0, 1.0, 50):
+                x, y = a + t * (b - a)
+                dx = max(1.5 - x, 0.0, x - 2.5)
+                dy = max(1.5 - y, 0.0, y - 2.5)
+                assert math.hypot(dx, dy) >= inflation - 0.1, (inflation, x, y)
+
+
+def test_a_robot_inside_an_obstacle_is_led_out_not_stuck():
+    grid = _grid_with_block()
+    planner = GridPlanner(grid, inflation=0.2)
+    path = planner((1.6, 2.0), (0.5, 2.0))  # started inside the block
+    assert np.allclose(path[0], (1.6, 2.0)) and np.allclose(path[-1], (0.5, 2.0))
+    exit_cell = grid.world_to_cell(path[1])
+    assert planner.planning_grid.is_free(exit_cell)
+    assert path[1][0] < 1.5 - 0.2 + 1e-9  # the nearest free cell, to the left of the block
+
+
+def test_a_goal_inside_an_obstacle_is_still_refused_with_inflation():
+    planner = GridPlanner(_grid_with_block(), inflation=0.2)
+    with pytest.raises(InObstacleError, match='goal'):
+        planner((0.5, 0.5), (2.0, 2.0))
+    # Within the margin but not in the obstacle: reached.
+    path = planner((0.5, 0.5), (1.4, 0.5))
+    assert np.allclose(path[-1], (1.4, 0.5))

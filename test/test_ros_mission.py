@@ -90,7 +90,8 @@ def _in_process_mission(damage, seed, goal, on_step=None):
                                            'acquisition.ucb.alpha', 'goal.eps')}
     det = DetectorConfig(**{k.split('.', 1)[1]: v for k, v in detector.items()
                             if k.startswith('detection.')})
-    return run_mission(env, load_archive(default_archive_path()), goal, GridPlanner(grid),
+    planner = GridPlanner(grid, inflation=plan['planner.inflation'])
+    return run_mission(env, load_archive(default_archive_path()), goal, planner,
                        lookahead=plan['planner.lookahead'], sela_config=sela_config,
                        detector_config=det, max_steps=adapter['max_steps'], on_step=on_step)
 
