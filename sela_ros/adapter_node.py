@@ -71,6 +71,7 @@ class SelaAdapter(Node):
         self.declare_parameter('frame_id', 'odom')
         self.declare_parameter('state_file', '')
         self.declare_parameter('resume', True)
+        self.declare_parameter('reset_on_fall', True)
 
         self.frame_id = self.get_parameter('frame_id').value
         self.max_steps = int(self.get_parameter('max_steps').value)
@@ -88,6 +89,7 @@ class SelaAdapter(Node):
         self.pending = {}
         self.targets = {}
         self.verdicts = deque(maxlen=16)  # behaviour ids the detector judged lately
+        self.reset_needed = False  # the robot fell: reset it through the service first
         self.adapt_after_outcome = False
         self._nonce = np.random.default_rng()
         self.steps = 0
@@ -110,6 +112,7 @@ class SelaAdapter(Node):
         self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback,
                                  STATE_QOS)
         self.plan_client = self.create_client(GetPlan, '/planner/make_plan')
+        self.reset_client = self.create_client(Trigger, '/sim_bridge/reset')
         self.create_service(Trigger, '/sela_adapter/adapt', self.adapt_callback)
         self.create_service(Trigger, '/sela_adapter/clear', self.clear_callback)
         self.add_on_set_parameters_callback(self.parameters_callback)
@@ -135,7 +138,8 @@ class SelaAdapter(Node):
         self.sela = make_sela(archive, {k: self.get_parameter(k).value for k in SELA_KEYS})
         if self.goal is not None:
             self.sela.set_goal(self.goal)
-        self.logic = MissionLogic(self.sela, self.get_parameter('adapt_on_start').value)
+        self.logic = MissionLogic(self.sela, self.get_parameter('adapt_on_start').value,
+                                  reset_on_fall=self.get_parameter('reset_on_fall').value)
         self.get_logger().info(f'archive {path}: {len(archive)} behaviours')
 
     def _resume(self):
@@ -156,6 +160,7 @@ class SelaAdapter(Node):
         self.next_id = int(m['next_id'])
         self.steps = int(m['steps'])
         self.pose = None if m['pose'] is None else np.array(m['pose'])
+        self.reset_needed = bool(m.get('reset_needed', False))
         if m['goal'] is not None:
             self.goal = np.array(m['goal'])
             self.sela.set_goal(self.goal)
@@ -174,6 +179,7 @@ class SelaAdapter(Node):
             if m['state'] == 'verdict':
                 self.pending = {}
         elif self.goal is not None and m['state'] not in ('done', 'idle'):
+            # (a reset in flight is asked again: reset_needed was saved before asking)
             self.state = 'ready'
         self.get_logger().warn(
             f'resumed from {self.state_file}: {len(self.sela.observations[0])} observation(s), '
@@ -201,7 +207,8 @@ class SelaAdapter(Node):
                         'adapting': self.logic.adapting,
                         'adaptations': self.logic.adaptations,
                         'last': None if last is None else [int(last[0]), last[1].tolist()],
-                        'next_id': self.next_id, 'pending': pending}}
+                        'next_id': self.next_id, 'pending': pending,
+                        'reset_needed': self.reset_needed}}
         # The snapshot is taken here; the fsync'ed write happens off the step's critical path,
         # one at a time and in order (a later snapshot always lands after an earlier one).
         self._saver.submit(self._write_state, state)
@@ -247,6 +254,9 @@ class SelaAdapter(Node):
             self.odom_pose = conv.pose_from_odometry(msg)
         except conv.MessageError as exc:
             self.get_logger().error(f'ignored odometry: {exc}')
+            return
+        if self.state == 'ready' and self.pose is None:
+            self.tick()  # waiting for a pose (start, or after a reset): here it is
 
     def target_callback(self, msg):
         try:
@@ -365,8 +375,12 @@ class SelaAdapter(Node):
             self._send(now)
         elif self.state == 'verdict' and now > self.pending['deadline']:
             self.state = 'ready'
+        elif self.state == 'resetting':
+            self._finish_reset(now)
 
     def _start_step(self, now):
+        if self.reset_needed:
+            return self._request_reset(now)
         pose = self.pose if self.pose is not None else self.odom_pose
         if pose is None or self.goal is None or self.logic is None:
             return
@@ -441,17 +455,21 @@ class SelaAdapter(Node):
         decision = self.pending['decision']
         now = self.pending['t_outcome'] = self.wall.now().nanoseconds * 1e-9
         self.pose = outcome.end_pose
+        self.reset_needed = bool(outcome.fallen) and bool(
+            self.get_parameter('reset_on_fall').value)
         # First ask for the next step's plan (it depends only on the pose, not on what is
         # learnt or on the detector's verdict): the planner works while this node learns.
         self.next_plan = None
         if self.goal is not None and not self.sela.goal_reached(self.pose) \
-                and self.steps < self.max_steps:
+                and self.steps < self.max_steps and not self.reset_needed:
             self.next_plan = self._request_plan(self.pose, self.steps + 1, now)
         record = self.logic.outcome(decision, self.pending['pose'], outcome.generic_reward,
                                     fallen=outcome.fallen)
         if outcome.fallen:
             self.failed_steps += 1
-            self._error(f'step {self.steps} failed: the robot fell (sim_bridge righted it)')
+            self._error(f'step {self.steps} failed: the robot fell or flipped' +
+                        ('; resetting it through /sim_bridge/reset' if self.reset_needed
+                         else ''))
         reward = -float(np.linalg.norm(self.pending['waypoint'] - outcome.end_pose[:2]))
         self.reward_pub.publish(Float64(data=reward))
         self._publish_status(DiagnosticStatus.OK, 'step', record, reward)
@@ -463,6 +481,42 @@ class SelaAdapter(Node):
         else:
             self._save()
         self._verdict_heard()
+
+    def _request_reset(self, now):
+        """The robot fell: put it back at the start through the service, then go on."""
+        if not self.reset_client.service_is_ready():
+            self.reset_needed = False
+            self._error('/sim_bridge/reset is not available: going on from where the robot '
+                        'lies')
+            return
+        self.pending = {'future': self.reset_client.call_async(Trigger.Request()),
+                        'deadline': now + float(self.get_parameter('outcome_timeout').value)}
+        self.pending['future'].add_done_callback(lambda _: self.tick())
+        self.state = 'resetting'
+        self.get_logger().warn('robot fell: calling /sim_bridge/reset')
+
+    def _finish_reset(self, now):
+        future = self.pending['future']
+        if not future.done():
+            if now > self.pending['deadline']:
+                self.reset_needed = False
+                self.state = 'ready'
+                self._error('/sim_bridge/reset did not answer: going on from where the robot '
+                            'lies')
+            return
+        answer = future.result()
+        self.reset_needed = False
+        self.state = 'ready'
+        if answer is not None and answer.success:
+            # The next step starts from the pose the simulator reports after the reset.
+            self.pose = self.odom_pose = None
+            self.next_plan = None
+            self.get_logger().warn(f'reset: {answer.message}')
+        else:
+            self._error('reset refused: ' + (answer.message if answer else 'no answer') +
+                        '; going on from where the robot lies')
+        self._save()
+        self.tick()
 
     def _finish(self, success, pose):
         self.state = 'done'

@@ -63,10 +63,15 @@ class MissionLogic:
     Args:
         sela: the SELA learner over the archive.
         adapt_on_start: learn from the first step instead of waiting for the detector.
+        reset_on_fall: a step that ends fallen is followed by a reset to the start, so the
+            gait took the robot nowhere: it is learnt as a zero displacement (learning the
+            tumble's displacement instead would make a gait that falls toward the goal look
+            good, and the robot would try it again and again from the start).
     """
 
-    def __init__(self, sela, adapt_on_start=False):
+    def __init__(self, sela, adapt_on_start=False, reset_on_fall=False):
         self.sela = sela
+        self.reset_on_fall = bool(reset_on_fall)
         self.adapting = bool(adapt_on_start)
         self.adaptations = 1 if adapt_on_start else 0
         self.last = None  # (index, observed_gr) of the latest outcome
@@ -82,9 +87,10 @@ class MissionLogic:
     def outcome(self, decision, pose, observed_gr, fallen=False, true_pose=None):
         """Step 4: record the outcome of ``decision`` and learn from it when adapting."""
         observed_gr = np.asarray(observed_gr, dtype=float)
+        learnt = np.zeros_like(observed_gr) if fallen and self.reset_on_fall else observed_gr
         if self.adapting:
-            self.sela.tell(decision.index, observed_gr)
-        self.last = (decision.index, observed_gr)
+            self.sela.tell(decision.index, learnt)
+        self.last = (decision.index, learnt)
         record = StepRecord(
             step=len(self.records) + 1, behavior_index=int(decision.index),
             pose=np.asarray(pose, float).tolist(), waypoint=decision.waypoint.tolist(),
@@ -125,16 +131,20 @@ def as_seen_in_odometry(pose):
 
 
 def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
-                detector_config=None, max_steps=100, adapt_on_start=False, on_step=None):
+                detector_config=None, max_steps=100, adapt_on_start=False, on_step=None,
+                reset_on_fall=False):
     """Run the whole mission in process against ``env`` (an ObservedHexapod-like object).
 
     The first step starts from the robot's odometry, later ones from the observed pose after
-    each gait, exactly as the ``sela_adapter`` node does. Returns ``(success, logic)``;
-    success is judged on the observed pose within ``goal.eps``, as the adapter judges it.
+    each gait, exactly as the ``sela_adapter`` node does. With ``reset_on_fall``, a step that
+    ends fallen is followed by ``env.reset()`` (the robot back at the start) and the next
+    step starts from the odometry, as the node does through ``/sim_bridge/reset``.
+    Returns ``(success, logic)``; success is judged on the observed pose within ``goal.eps``,
+    as the adapter judges it.
     """
     sela = make_sela(archive, sela_config)
     sela.set_goal(goal)
-    logic = MissionLogic(sela, adapt_on_start=adapt_on_start)
+    logic = MissionLogic(sela, adapt_on_start=adapt_on_start, reset_on_fall=reset_on_fall)
     detector = DamageDetector(detector_config or DetectorConfig())
     pose = as_seen_in_odometry(env.true_pose())
     for _ in range(max_steps):
@@ -152,6 +162,9 @@ def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
         if verdict.fire:
             logic.adapt()
         pose = execution.observed_end
+        if execution.fallen and reset_on_fall:
+            env.reset()
+            pose = as_seen_in_odometry(env.true_pose())
         if on_step is not None:
             on_step(record)
     return bool(sela.goal_reached(pose)), logic

@@ -51,7 +51,7 @@ PARAMETER_RULES = {
     'publish_period': positive_number(' (s of sim time)'),
     'publish_max_rate': non_negative_number(' (Hz of wall time, 0: no cap)'),
     'sim.dt': startup_only, 'sim.gait_duration': startup_only, 'sim.gui': startup_only,
-    'seed': startup_only, 'reset_on_fall': startup_only,
+    'seed': startup_only, 'right_on_fall': startup_only,
 }
 
 
@@ -63,10 +63,12 @@ class SimBridge(Node):
         self.declare_parameter('sim.gait_duration', 3.0)
         self.declare_parameter('sim.gui', False)
         self.declare_parameter('publish_period', 0.5)
-        self.declare_parameter('publish_max_rate', 10.0)
+        self.declare_parameter('publish_max_rate', 5.0)
         self.declare_parameter('observation.noise_std', 0.01)
         self.declare_parameter('seed', 0)
-        self.declare_parameter('reset_on_fall', True)
+        # False: a fallen robot stays down until /sim_bridge/reset (the adapter calls it);
+        # True: rebuilt standing where it lies after the gait (no adapter needed).
+        self.declare_parameter('right_on_fall', False)
 
         damage = self.get_parameter('damage').value
         try:
@@ -79,10 +81,10 @@ class SimBridge(Node):
                         damage=damage, gui=self.get_parameter('sim.gui').value)
         self.env = ObservedHexapod(robot, self.get_parameter('observation.noise_std').value,
                                    seed=self.get_parameter('seed').value,
-                                   right_on_fall=self.get_parameter('reset_on_fall').value)
+                                   right_on_fall=self.get_parameter('right_on_fall').value)
         self.publish_period = float(self.get_parameter('publish_period').value)
         self.publish_max_rate = float(self.get_parameter('publish_max_rate').value)
-        self.reset_on_fall = bool(self.get_parameter('reset_on_fall').value)
+        self.right_on_fall = bool(self.get_parameter('right_on_fall').value)
 
         self._sim_lock = threading.Lock()
         self._work = queue.Queue()
@@ -211,9 +213,9 @@ class SimBridge(Node):
         self._publish_state(self.env.robot.sim_time)
 
     def _report_fall(self, behavior_id):
-        values = {'behavior_id': behavior_id}
-        if self.reset_on_fall:
-            values['action'] = 'righted in place'
+        values = {'behavior_id': behavior_id,
+                  'action': 'righted in place' if self.right_on_fall
+                  else 'down until /sim_bridge/reset'}
         self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
             DiagnosticStatus.ERROR, 'sim_bridge: robot', 'robot fell or flipped', values,
             hardware_id='hexapod'), self.env.robot.sim_time))
@@ -225,13 +227,14 @@ class SimBridge(Node):
         pose = self.env.true_pose() if pose is None else pose
         odom = conv.odometry_msg(pose, stamp=sim_time)
         self.odom_pub.publish(odom)
-        if positions is not None:
-            js = JointState()
-            js.header.stamp = stamp
-            js.name = list(self.env.robot.joint_names)
-            js.position = [float(v) for v in positions]
-            js.velocity = [float(v) for v in velocities]
-            self.joint_pub.publish(js)
+        if positions is None:
+            positions, velocities = self.env.robot.joint_states()
+        js = JointState()
+        js.header.stamp = stamp
+        js.name = list(self.env.robot.joint_names)
+        js.position = [float(v) for v in positions]
+        js.velocity = [float(v) for v in velocities]
+        self.joint_pub.publish(js)
 
     def destroy_node(self):
         self._stop.set()

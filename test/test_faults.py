@@ -217,3 +217,43 @@ def test_goal_inside_an_obstacle_is_refused_and_the_next_goal_goes_around_it(gra
             assert not (OBSTACLE[0] < x < OBSTACLE[2] and OBSTACLE[1] < y < OBSTACLE[3]), \
                 (x, y)
     assert all(nodes.alive().values()), nodes.logs()
+
+
+FALLING_GAIT = 21  # of the shipped archive: tips the robot over without its front left leg
+
+
+def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_failed(tmp_path):
+    from sela_ros.archive import Archive, default_archive_path, load_archive
+
+    # An archive whose most attractive gait (straight to the first waypoint, on paper) is
+    # one that makes the damaged robot fall.
+    shipped = load_archive(default_archive_path())
+    keep = [FALLING_GAIT] + [i for i in range(300) if i != FALLING_GAIT]
+    rewards = shipped.generic_reward[keep].copy()
+    rewards[0] = (0.6, 0.0, 0.0)
+    path = Archive(shipped.params[keep], shipped.descriptors[keep], rewards,
+                   shipped.fitness[keep], shipped.metadata).save(tmp_path / 'falling.npz')
+    nodes = NodeProcesses({'sim_bridge': {'damage': 'remove:front_left'},
+                           'sela_adapter': {'archive': str(path), 'max_steps': 4}})
+    client = Client()
+    try:
+        diag = Diagnostics(client)
+        goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+        goal_pub.publish(conv.pose_stamped((1.0, 0.0), frame_id='odom'))
+        client.spin_until(lambda: len(diag.steps()) >= 2, 120, 'two steps')
+        first, second = diag.steps()[:2]
+        assert first['behavior_index'] == '0' and first['fallen'] == 'True', first
+        assert first['failed_steps'] == '1'
+        assert any('fell' in e for e in diag.errors('sim_bridge: robot'))
+        assert any('failed: the robot fell' in e and '/sim_bridge/reset' in e
+                   for e in diag.errors('sela_adapter'))
+        # It fell away from the start, and the next step started from the start again.
+        end = np.array(first['end_pose'].split(), float)
+        start = np.array(second['pose'].split(), float)
+        assert np.linalg.norm(end[:2]) > 0.1, first
+        assert np.linalg.norm(start[:2]) < 0.02 and abs(start[2]) < 0.02, second
+        assert 'reset: robot back at the start' in nodes.logs()['sela_adapter.log']
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()

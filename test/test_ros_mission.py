@@ -83,7 +83,8 @@ def _in_process_mission(damage, seed, goal, on_step=None):
     adapter = cfg['sela_adapter']['ros__parameters']
     detector = cfg['damage_detector']['ros__parameters']
     env = ObservedHexapod(Hexapod(dt=bridge['sim.dt'], gait_duration=bridge['sim.gait_duration'],
-                                  damage=damage), bridge['observation.noise_std'], seed=seed)
+                                  damage=damage), bridge['observation.noise_std'], seed=seed,
+                          right_on_fall=bridge['right_on_fall'])
     grid = grid_from_description(plan['map.resolution'], plan['map.origin'], plan['map.width'],
                                  plan['map.height'], plan.get('map.obstacles', []))
     sela_config = {k: adapter[k] for k in ('gp.kernel.sigma', 'gp.noise',
@@ -93,7 +94,8 @@ def _in_process_mission(damage, seed, goal, on_step=None):
     planner = GridPlanner(grid, inflation=plan['planner.inflation'])
     return run_mission(env, load_archive(default_archive_path()), goal, planner,
                        lookahead=plan['planner.lookahead'], sela_config=sela_config,
-                       detector_config=det, max_steps=adapter['max_steps'], on_step=on_step)
+                       detector_config=det, max_steps=adapter['max_steps'], on_step=on_step,
+                       reset_on_fall=adapter['reset_on_fall'])
 
 
 @pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'remove:middle_right',
