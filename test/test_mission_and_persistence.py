@@ -41,6 +41,19 @@ def test_mission_trusts_the_map_until_adapt_then_learns_and_restarts():
     assert logic.sela.observations[0].tolist() == [d2.index] and logic.adaptations == 2
 
 
+@pytest.mark.parametrize('reset_on_fall', [False, True])
+def test_a_step_that_ends_fallen_is_learnt_as_going_nowhere_when_the_robot_is_reset(
+        reset_on_fall):
+    logic = MissionLogic(_sela(), adapt_on_start=True, reset_on_fall=reset_on_fall)
+    pose = np.zeros(3)
+    decision = logic.decide(pose, np.array([0.3, 0.0]))
+    tumble = [0.3, 0.05, -2.0]
+    record = logic.outcome(decision, pose, tumble, fallen=True)
+    assert record.fallen and record.observed_gr == tumble  # reported as it happened
+    learnt = logic.sela.observations[1][0].tolist()
+    assert learnt == ([0.0, 0.0, 0.0] if reset_on_fall else tumble)
+
+
 def test_odometry_round_trip_of_the_first_pose():
     pose = as_seen_in_odometry([0.1, -0.2, 0.3])
     assert pose[0] == 0.1 and pose[1] == -0.2 and abs(pose[2] - 0.3) < 1e-12
