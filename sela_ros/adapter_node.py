@@ -34,14 +34,15 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
 from nav_msgs.srv import GetPlan
-from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.msg import ParameterType, SetParametersResult
+from rcl_interfaces.srv import GetParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
 from sela_ros import conversions as conv
-from sela_ros.archive import ArchiveError, default_archive_path, load_archive
+from sela_ros.archive import ArchiveError, check_settings, default_archive_path, load_archive
 from sela_ros.heartbeat import add_heartbeat
 from sela_ros.mission import MissionLogic, make_sela
 from sela_ros.node_main import run_node
@@ -72,6 +73,9 @@ class SelaAdapter(Node):
         self.declare_parameter('state_file', '')
         self.declare_parameter('resume', True)
         self.declare_parameter('reset_on_fall', True)
+        # The node whose sim.dt and sim.gait_duration the archive must have been built with
+        # ('' on a real robot: nothing to check).
+        self.declare_parameter('simulator_node', 'sim_bridge')
 
         self.frame_id = self.get_parameter('frame_id').value
         self.max_steps = int(self.get_parameter('max_steps').value)
@@ -113,6 +117,10 @@ class SelaAdapter(Node):
                                  STATE_QOS)
         self.plan_client = self.create_client(GetPlan, '/planner/make_plan')
         self.reset_client = self.create_client(Trigger, '/sim_bridge/reset')
+        simulator = self.get_parameter('simulator_node').value
+        self.sim_params_client = (self.create_client(GetParameters, f'/{simulator}/get_parameters')
+                                  if simulator else None)
+        self.sim_check = None  # None: not checked yet, 'pending', True: matches, str: why not
         self.create_service(Trigger, '/sela_adapter/adapt', self.adapt_callback)
         self.create_service(Trigger, '/sela_adapter/clear', self.clear_callback)
         self.add_on_set_parameters_callback(self.parameters_callback)
@@ -135,6 +143,8 @@ class SelaAdapter(Node):
     def _use_archive(self, path):
         archive = load_archive(path)
         self.archive = archive
+        self.archive_path = path
+        self.sim_check = None  # a new archive is checked against the simulator again
         self.sela = make_sela(archive, {k: self.get_parameter(k).value for k in SELA_KEYS})
         if self.goal is not None:
             self.sela.set_goal(self.goal)
@@ -247,6 +257,8 @@ class SelaAdapter(Node):
             self.state = 'ready'
         self._save()
         self.get_logger().info(f'new goal ({goal[0]:.2f}, {goal[1]:.2f})')
+        if isinstance(self.sim_check, str):
+            self._error(self.sim_check)
         self.tick()
 
     def odom_callback(self, msg):
@@ -339,7 +351,7 @@ class SelaAdapter(Node):
 
     def parameters_callback(self, params):
         rules = dict.fromkeys(SELA_KEYS + ('adapt_on_start', 'state_file', 'resume',
-                                           'frame_id'), startup_only)
+                                           'frame_id', 'simulator_node'), startup_only)
         rules.update({'detector_timeout': positive_number(' (s)'),
                       'outcome_timeout': positive_number(' (s)'), 'max_steps': positive_int,
                       'archive': string})
@@ -364,6 +376,7 @@ class SelaAdapter(Node):
     def tick(self):
         """Advance the step state machine: on events, and on a slow timer for time-outs."""
         now = self.wall.now().nanoseconds * 1e-9
+        self._check_simulator()
         if self.state == 'ready':
             self._start_step(now)
         elif self.state == 'planning':
@@ -378,7 +391,40 @@ class SelaAdapter(Node):
         elif self.state == 'resetting':
             self._finish_reset(now)
 
+    def _check_simulator(self):
+        """Ask the simulator (once per archive) for the settings the archive must match."""
+        if (self.sim_check is not None or self.archive is None
+                or self.sim_params_client is None
+                or not self.sim_params_client.service_is_ready()):
+            return
+        self.sim_check = 'pending'
+        future = self.sim_params_client.call_async(
+            GetParameters.Request(names=['sim.dt', 'sim.gait_duration']))
+        archive = self.archive
+        future.add_done_callback(lambda f: self._on_simulator_settings(f, archive))
+
+    def _on_simulator_settings(self, future, archive):
+        if archive is not self.archive:
+            return  # the archive changed meanwhile: it gets its own check
+        values = future.result().values if future.result() is not None else []
+        if len(values) != 2 or any(v.type != ParameterType.PARAMETER_DOUBLE for v in values):
+            self.sim_check = None  # not a simulator we know how to ask: try again later
+            return
+        settings = {'dt': values[0].double_value, 'gait_duration': values[1].double_value}
+        try:
+            check_settings(archive.metadata, settings, source=self.archive_path)
+        except ArchiveError as exc:
+            self.sim_check = (f'{exc} The simulator runs sim.dt {settings["dt"]:g} s, '
+                              f'sim.gait_duration {settings["gait_duration"]:g} s: no gait is '
+                              'sent until the archive parameter names a matching archive.')
+            self._error(self.sim_check)
+            return
+        self.sim_check = True
+        self.tick()
+
     def _start_step(self, now):
+        if isinstance(self.sim_check, str) or self.sim_check == 'pending':
+            return  # does not match the simulator (reported), or the answer is on its way
         if self.reset_needed:
             return self._request_reset(now)
         pose = self.pose if self.pose is not None else self.odom_pose

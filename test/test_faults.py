@@ -257,3 +257,25 @@ def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_faile
     finally:
         client.close()
         nodes.stop()
+
+
+@pytest.mark.parametrize('graph', [{'sim_bridge': {'sim.dt': 0.005}}], indirect=True)
+def test_archive_built_for_another_simulator_is_refused_with_the_reason(graph):
+    nodes, client = graph
+    diag = Diagnostics(client)
+    commands = []
+    client.node.create_subscription(Float64MultiArray, '/hexapod/behavior', commands.append,
+                                    COMMAND_QOS)
+    # The mismatch is reported when found and again with every goal (a goal reaches the
+    # adapter once this client is discovered, so the report then reaches it too).
+    goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+    goal_pub.publish(conv.pose_stamped((1.0, 0.0), frame_id='odom'))
+    client.spin_until(lambda: any('other simulator settings' in e
+                                  for e in diag.errors('sela_adapter')), 60,
+                      'the mismatch reported')
+    error = next(e for e in diag.errors('sela_adapter') if 'other simulator settings' in e)
+    assert 'dt' in error and '0.005' in error and 'archive' in error
+    end = time.monotonic() + 3.0
+    client.spin_until(lambda: time.monotonic() > end, 5.0)
+    assert not commands and not diag.steps()  # nothing sent on a map of another simulator
+    assert all(nodes.alive().values()), nodes.logs()
