@@ -90,6 +90,14 @@ class Client:
             return
         raise TimeoutError(f'timed out after {timeout} s waiting for {what}')
 
+    def wait_for_publishers(self, topics, timeout=60.0, settle=0.5):
+        """Wait until this node has discovered a publisher on each topic, then ``settle`` s:
+        on volatile topics, what is published before discovery never arrives."""
+        self.spin_until(lambda: all(self.node.count_publishers(t) for t in topics), timeout,
+                        f'publishers on {", ".join(topics)}')
+        end = time.monotonic() + settle
+        self.spin_until(lambda: time.monotonic() > end, settle + 1.0)
+
     def call(self, client, request, timeout=20.0):
         self.spin_until(client.service_is_ready, timeout, f'service {client.srv_name}')
         future = client.call_async(request)

@@ -157,6 +157,7 @@ def test_killed_nodes_come_back_and_the_mission_completes(graph):
     nodes, client = graph
     diag = Diagnostics(client)
     goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+    client.wait_for_publishers(('/diagnostics', '/hexapod/behavior_outcome'))
     goal_pub.publish(conv.pose_stamped((1.6, 1.2), frame_id='odom'))
     client.spin_until(lambda: len(diag.steps()) >= 5, 200, 'five steps')
 
@@ -199,6 +200,7 @@ def test_goal_inside_an_obstacle_is_refused_and_the_next_goal_goes_around_it(gra
     paths = []
     client.node.create_subscription(conv.Path, '/planner/path', paths.append, LATCHED_QOS)
     goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+    client.wait_for_publishers(('/diagnostics', '/planner/path'))
     goal_pub.publish(conv.pose_stamped((0.9, 0.9), frame_id='odom'))
     client.spin_until(lambda: any('inside an obstacle' in e for e in diag.errors('planner')),
                       60, 'the goal inside the obstacle reported by the planner')
@@ -239,6 +241,7 @@ def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_faile
     try:
         diag = Diagnostics(client)
         goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+        client.wait_for_publishers(('/diagnostics', '/hexapod/behavior_outcome'))
         goal_pub.publish(conv.pose_stamped((1.0, 0.0), frame_id='odom'))
         client.spin_until(lambda: len(diag.steps()) >= 2, 120, 'two steps')
         first, second = diag.steps()[:2]

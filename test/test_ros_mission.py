@@ -1,4 +1,5 @@
 """Integration over DDS: the four nodes as processes, asserted on the messages they exchange."""
+
 import numpy as np
 import pytest
 import yaml
@@ -26,6 +27,7 @@ class Watcher:
     def __init__(self, client):
         self.steps, self.finals, self.verdicts = [], [], []
         self.commands, self.outcomes, self.rewards = [], [], []
+        self.client = client
         node = client.node
         node.create_subscription(DiagnosticArray, '/diagnostics', self._diag, STATE_QOS)
         node.create_subscription(Float64MultiArray, '/hexapod/behavior',
@@ -49,6 +51,9 @@ class Watcher:
                 self.verdicts.append((status.level, values))
 
     def send_goal(self, x, y):
+        # Everything published after the goal must reach this watcher.
+        self.client.wait_for_publishers(('/diagnostics', '/hexapod/behavior',
+                                         '/hexapod/behavior_outcome', '/sela/reward'))
         self.goal_pub.publish(conv.pose_stamped((x, y), frame_id='odom'))
 
 
