@@ -1,11 +1,36 @@
 """The one ``main()`` of every sela_ros node (Jazzy style: init, spin, clean shutdown)."""
+import sys
+
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
+
+from sela_ros.params import params_file_problems
+
+#: Exit status of a node that refuses to start on a bad configuration (as argparse's).
+EXIT_BAD_CONFIGURATION = 2
 
 
 def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
-    """Create ``node_class()`` and spin it until Ctrl-C or an external shutdown."""
-    rclpy.init(args=args)
+    """Create ``node_class()`` and spin it until Ctrl-C or an external shutdown.
+
+    A malformed ``--params-file`` stops the node before it starts, with the file, the line
+    and the problem on stderr and exit status 2: running on defaults the user did not ask
+    for would be worse than not running.
+    """
+    argv = sys.argv if args is None else args
+    problems = params_file_problems(argv)
+    if problems:
+        for problem in problems:
+            print(f'[ERROR] [{node_class.__name__}]: {problem}', file=sys.stderr)
+        print(f'[ERROR] [{node_class.__name__}]: not started: fix the parameters file',
+              file=sys.stderr)
+        sys.exit(EXIT_BAD_CONFIGURATION)
+    try:
+        rclpy.init(args=args)
+    except rclpy_implementation.RCLError as exc:
+        print(f'[ERROR] [{node_class.__name__}]: not started: {exc}', file=sys.stderr)
+        sys.exit(EXIT_BAD_CONFIGURATION)
     node = None
     try:
         node = node_class()

@@ -62,3 +62,44 @@ def first_problem(changes, rules):
         if problem:
             return f'{name} {problem}'
     return None
+
+
+def params_file_problems(args):
+    """Problems with the ``--params-file`` files named in ``args`` (a node's command line).
+
+    rcl refuses a file it cannot parse with a terse message; this says which file, where and
+    what, before rcl sees it. Returns a list of messages (empty: all files look right).
+    """
+    import yaml
+
+    problems = []
+    args = list(args or [])
+    for i, arg in enumerate(args):
+        if arg != '--params-file':
+            continue
+        if i + 1 >= len(args):
+            problems.append('--params-file needs a file name')
+            continue
+        path = args[i + 1]
+        try:
+            with open(path) as handle:
+                data = yaml.safe_load(handle)
+        except OSError as exc:
+            problems.append(f'params file {path}: {exc.strerror}')
+            continue
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, 'problem_mark', None)
+            where = f':{mark.line + 1}:{mark.column + 1}' if mark is not None else ''
+            what = getattr(exc, 'problem', None) or str(exc)
+            problems.append(f'params file {path}{where}: not valid YAML: {what}')
+            continue
+        if not isinstance(data, dict):
+            problems.append(f'params file {path}: expected a mapping of node names, each with '
+                            'a ros__parameters mapping')
+            continue
+        for node, section in data.items():
+            if not (isinstance(section, dict)
+                    and isinstance(section.get('ros__parameters'), dict)):
+                problems.append(f'params file {path}: node {node!r} needs a '
+                                'ros__parameters mapping')
+    return problems

@@ -85,3 +85,37 @@ def test_detector_config_validation(threshold, window, cooldown, max_sigma):
         assert ok
     except ValueError as exc:
         assert not ok and 'detection.' in str(exc)
+
+
+def test_params_file_problems_say_which_file_where_and_what(tmp_path):
+    from sela_ros.params import params_file_problems
+
+    good = tmp_path / 'good.yaml'
+    good.write_text('planner:\n  ros__parameters:\n    planner.lookahead: 0.6\n')
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('planner:\n  ros__parameters:\n    planner.lookahead: [0.6\n')
+    flat = tmp_path / 'flat.yaml'
+    flat.write_text('planner:\n  planner.lookahead: 0.6\n')
+    assert params_file_problems(['planner', '--ros-args', '--params-file', str(good)]) == []
+    (problem,) = params_file_problems(['--ros-args', '--params-file', str(broken)])
+    assert f'{broken}:4:1' in problem and 'not valid YAML' in problem
+    (problem,) = params_file_problems(['--params-file', str(flat)])
+    assert "node 'planner' needs a ros__parameters mapping" in problem
+    (problem,) = params_file_problems(['--params-file', str(tmp_path / 'missing.yaml')])
+    assert 'missing.yaml' in problem and 'No such file' in problem
+
+
+def test_a_node_given_a_malformed_params_file_says_where_and_does_not_start(tmp_path):
+    import os
+    import subprocess
+
+    from sela_ros.ros_env import executable, ros_environment
+
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('planner:\n  ros__parameters:\n    planner.lookahead: [0.6\n')
+    env = ros_environment(domain_id=int(os.environ.get('ROS_DOMAIN_ID', '0')))
+    proc = subprocess.run([str(executable('planner')), '--ros-args', '--params-file',
+                           str(broken)], env=env, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    assert f'{broken}:4:1: not valid YAML' in proc.stderr
+    assert 'Traceback' not in proc.stderr
