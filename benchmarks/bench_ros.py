@@ -1,10 +1,12 @@
 #!/usr/bin/env python3
 """ROS overhead per step, and a long run of consecutive gaits over DDS.
 
-``overhead``: the same mission (same seed, same decisions) run in process and over DDS with
-the four node processes; prints the wall time per step of each and the ratio (target: DDS at
-most 10% slower). ``long``: N consecutive gaits over DDS (a goal that cannot be reached),
-printing each node's memory (RSS) and the step time at the start and at the end.
+``overhead``: the same mission (same seed, same decisions) run in process, over DDS with
+the four node processes, and in process again, in interleaved rounds; prints each round's
+ratio and, step by step, the best of the rounds over DDS against the best in process
+(target: DDS at most 10% slower). ``long``: N consecutive gaits over DDS (a goal that
+cannot be reached), printing each node's memory (RSS) and the step time at the start and
+at the end.
 
 Run with the project's venv: ``.venv/bin/python benchmarks/bench_ros.py overhead`` (or
 ``long --steps 200``). Uses its own ROS_DOMAIN_ID; DDS stays on loopback.
