@@ -173,7 +173,16 @@ def run_client(args, damage, out, procs):
     goal_pub = node.create_publisher(PoseStamped, '/goal_pose', LATCHED_QOS)
     start = time.monotonic()
     try:
-        # The goal is latched: the planner and the adapter get it whenever they come up.
+        # Volatile topics drop what is published before discovery: hear the nodes first
+        # (the goal itself is latched, the planner and the adapter would get it anyway).
+        topics_needed = ('/diagnostics', '/hexapod/odom', '/hexapod/behavior_outcome')
+        deadline = time.monotonic() + 60.0
+        while (not all(node.count_publishers(t) for t in topics_needed)
+               and time.monotonic() < deadline):
+            rclpy.spin_once(node, timeout_sec=0.1)
+        settle = time.monotonic() + 0.5
+        while time.monotonic() < settle:
+            rclpy.spin_once(node, timeout_sec=0.05)
         goal_pub.publish(conv.pose_stamped(args.goal, frame_id='odom'))
         while state['done'] is None and time.monotonic() - start < args.timeout:
             rclpy.spin_once(node, timeout_sec=0.1)
@@ -181,7 +190,8 @@ def run_client(args, damage, out, procs):
             if dead:
                 print(f'sela-demo: node(s) {dead} exited; see their logs', file=sys.stderr)
                 break
-        for _ in range(5):
+        settle = time.monotonic() + 0.5  # the state after the last gait
+        while time.monotonic() < settle:
             rclpy.spin_once(node, timeout_sec=0.05)
     finally:
         recorder.close()
