@@ -14,6 +14,11 @@ Each step (a small state machine driven by events, so no callback ever waits):
 4. wait (at most ``detector_timeout`` s) for the damage detector's verdict on that outcome on
    ``/diagnostics``: if it decided to adapt, it has called ``/sela_adapter/adapt`` first.
 
+An outcome that says the robot fell is a failed step: with ``reset_on_fall`` the robot is put
+back at the start through ``/sim_bridge/reset`` before the next step, and the gait is learnt
+as going nowhere. Before the first step with an archive, the simulator's ``sim.dt`` and
+``sim.gait_duration`` are checked against the archive's (``simulator_node``).
+
 The mission starts trusting the intact map; ``/sela_adapter/adapt`` starts adaptation, or
 restarts it from scratch when it was running. Progress is published on ``/diagnostics``
 (name ``sela_adapter: mission``) once per step.
@@ -351,7 +356,8 @@ class SelaAdapter(Node):
 
     def parameters_callback(self, params):
         rules = dict.fromkeys(SELA_KEYS + ('adapt_on_start', 'state_file', 'resume',
-                                           'frame_id', 'simulator_node'), startup_only)
+                                           'frame_id', 'simulator_node', 'reset_on_fall'),
+                              startup_only)
         rules.update({'detector_timeout': positive_number(' (s)'),
                       'outcome_timeout': positive_number(' (s)'), 'max_steps': positive_int,
                       'archive': string})

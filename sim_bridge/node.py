@@ -164,10 +164,13 @@ class SimBridge(Node):
                 # No gait running: keep /clock and odom alive (sim time stands still) so that
                 # nodes started later get a pose. Done here, not by an executor timer, so
                 # nothing wakes the executor while a gait runs.
-                if not self.context.ok():
-                    return  # shutting down: nothing to publish on any more
-                with self._sim_lock:
-                    self._publish_state(self.env.robot.sim_time)
+                try:
+                    with self._sim_lock:
+                        self._publish_state(self.env.robot.sim_time)
+                except Exception as exc:  # noqa: BLE001 - the worker must outlive a publish
+                    if not self.context.ok():
+                        return  # shutting down: nothing to publish on any more
+                    self.get_logger().error(f'idle state not published: {exc}')
                 continue
             try:
                 with self._sim_lock:
