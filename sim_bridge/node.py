@@ -5,17 +5,16 @@ Publishes ``/clock`` (it owns sim time), ``/hexapod/odom`` (odom -> base_link),
 exactly one ``/hexapod/behavior_outcome`` carrying the command's id; serves
 ``/sim_bridge/reset``. ``damage`` can be changed at run time with ``ros2 param set``.
 
-Gaits run on a worker thread, so services, parameters and subscriptions keep answering
-while the robot walks.
+Gaits run on a worker thread that owns the simulator, so the node's single-threaded
+executor keeps answering services, parameters and subscriptions while the robot walks.
+(A MultiThreadedExecutor here delayed some commands by 10-350 ms, measured.)
 """
-import queue
 import threading
 import time
+from collections import deque
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
@@ -86,8 +85,11 @@ class SimBridge(Node):
         self.publish_max_rate = float(self.get_parameter('publish_max_rate').value)
         self.right_on_fall = bool(self.get_parameter('right_on_fall').value)
 
-        self._sim_lock = threading.Lock()
-        self._work = queue.Queue()
+        self._sim_lock = threading.Lock()  # held by whoever touches the simulator
+        # The worker's queue (FIFO): commands, resets, damage and noise changes.
+        self._cond = threading.Condition()
+        self._work = deque()
+        self._busy = False  # the worker holds an item from the queue
         self._next_auto_id = 1_000_000_000  # ids for commands sent without one
         self._commands_done = 0
 
@@ -98,9 +100,8 @@ class SimBridge(Node):
                                                  OUTCOME_QOS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
         self.create_subscription(Float64MultiArray, '/hexapod/behavior', self.behavior_callback,
-                                 COMMAND_QOS, callback_group=MutuallyExclusiveCallbackGroup())
-        self.create_service(Trigger, '/sim_bridge/reset', self.reset_callback,
-                            callback_group=ReentrantCallbackGroup())
+                                 COMMAND_QOS)
+        self.create_service(Trigger, '/sim_bridge/reset', self.reset_callback)
         self.add_on_set_parameters_callback(self.parameters_callback)
         add_heartbeat(self)
 
@@ -126,18 +127,30 @@ class SimBridge(Node):
         if behavior_id is None:
             behavior_id = self._next_auto_id
             self._next_auto_id += 1
-        self._work.put(('gait', behavior_id, params))
+        self._enqueue('gait', behavior_id, params)
 
     def reset_callback(self, request, response):
-        done = threading.Event()
-        self._work.put(('reset', done, None))
-        if not done.wait(timeout=30.0):
-            response.success = False
-            response.message = 'reset timed out: the simulator is busy'
-            return response
+        # Callbacks run one at a time on the executor's thread, and only they fill the queue:
+        # an idle worker stays idle while the robot is reset here.
+        with self._cond:
+            idle = not self._work and not self._busy
         response.success = True
-        response.message = f'robot back at the start, sim time {self.env.robot.sim_time:.3f} s'
+        if idle:
+            with self._sim_lock:
+                self.env.reset()
+                self._publish_state(self.env.robot.sim_time)
+            response.message = (f'robot back at the start, sim time '
+                                f'{self.env.robot.sim_time:.3f} s')
+        else:  # never wait for a gait in a callback: after the commands already received
+            self._enqueue('reset', None, None)
+            response.message = ('reset queued: the robot goes back to the start after the '
+                                f'{len(self._work) - 1 + self._busy} command(s) before it')
         return response
+
+    def _enqueue(self, kind, a, b):
+        with self._cond:
+            self._work.append((kind, a, b))
+            self._cond.notify()
 
     def parameters_callback(self, params):
         problem = first_problem(((p.name, p.value) for p in params), PARAMETER_RULES)
@@ -145,9 +158,9 @@ class SimBridge(Node):
             return SetParametersResult(successful=False, reason=problem)
         for param in params:
             if param.name == 'damage':
-                self._work.put(('damage', parse_damage(param.value).canonical(), None))
+                self._enqueue('damage', parse_damage(param.value).canonical(), None)
             elif param.name == 'observation.noise_std':
-                self._work.put(('noise', float(param.value), None))
+                self._enqueue('noise', float(param.value), None)
             elif param.name == 'publish_period':
                 self.publish_period = float(param.value)
             elif param.name == 'publish_max_rate':
@@ -158,9 +171,12 @@ class SimBridge(Node):
 
     def _work_loop(self):
         while not self._stop.is_set():
-            try:
-                kind, a, b = self._work.get(timeout=IDLE_PERIOD)
-            except queue.Empty:
+            with self._cond:
+                if not self._work:
+                    self._cond.wait(timeout=IDLE_PERIOD)
+                item = self._work.popleft() if self._work else None
+                self._busy = item is not None
+            if item is None:
                 # No gait running: keep /clock and odom alive (sim time stands still) so that
                 # nodes started later get a pose. Done here, not by an executor timer, so
                 # nothing wakes the executor while a gait runs.
@@ -172,6 +188,7 @@ class SimBridge(Node):
                         return  # shutting down: nothing to publish on any more
                     self.get_logger().error(f'idle state not published: {exc}')
                 continue
+            kind, a, b = item
             try:
                 with self._sim_lock:
                     if kind == 'gait':
@@ -179,7 +196,6 @@ class SimBridge(Node):
                     elif kind == 'reset':
                         self.env.reset()
                         self._publish_state(self.env.robot.sim_time)
-                        a.set()
                     elif kind == 'damage':
                         self.env.robot.set_damage(a)
                         self._publish_state(self.env.robot.sim_time)
@@ -188,6 +204,9 @@ class SimBridge(Node):
                         self.env.noise_std = a
             except Exception as exc:  # keep the bridge alive whatever one command does
                 self.get_logger().error(f'{kind} failed: {type(exc).__name__}: {exc}')
+            finally:
+                with self._cond:
+                    self._busy = False
 
     def _run_gait(self, behavior_id, params):
         # Mid-gait state every publish_period of sim time, but at most publish_max_rate times
@@ -246,8 +265,7 @@ class SimBridge(Node):
 
 
 def main(args=None):
-    # Two threads: services and parameters are answered while the gait worker runs.
-    run_node(SimBridge, args, executor_factory=lambda: MultiThreadedExecutor(num_threads=2))
+    run_node(SimBridge, args)
 
 
 if __name__ == '__main__':

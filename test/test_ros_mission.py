@@ -13,6 +13,7 @@ from std_srvs.srv import Trigger
 
 from sela_ros import conversions as conv
 from sela_ros.adapter_node import MISSION_STATUS
+from sela_ros.archive import default_archive_path, load_archive
 from sela_ros.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
 from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
 
@@ -74,7 +75,6 @@ def _config():
 
 def _in_process_mission(damage, seed, goal, on_step=None):
     """The same mission, same configuration, run in process (no DDS)."""
-    from sela_ros.archive import default_archive_path, load_archive
     from sela_ros.damage_detection import DetectorConfig
     from sela_ros.mission import run_mission
     from sela_ros.planner_node import grid_from_description
@@ -142,7 +142,8 @@ def _set_param(client, node, name, value):
 def test_every_service_answers(graph):
     nodes, client = graph
     node = client.node
-    reset = client.call(node.create_client(Trigger, '/sim_bridge/reset'), Trigger.Request())
+    reset_cli = node.create_client(Trigger, '/sim_bridge/reset')
+    reset = client.call(reset_cli, Trigger.Request())
     assert reset.success and 'start' in reset.message
 
     plan_cli = node.create_client(GetPlan, '/planner/make_plan')
@@ -164,6 +165,29 @@ def test_every_service_answers(graph):
     assert not bad.successful and 'middle_right' in bad.reason  # lists the valid legs
     good = _set_param(client, 'sim_bridge', 'damage', 'shorten:front_left:0.5')
     assert good.successful
+
+    # While gaits run, the simulator still answers at once: a reset asked during them is
+    # queued behind them (the answer says so), and the robot ends up back at the start.
+    outcomes, poses = [], []
+    node.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
+                             lambda m: outcomes.append(conv.outcome_from_msg(m)), OUTCOME_QOS)
+    node.create_subscription(conv.Odometry, '/hexapod/odom',
+                             lambda m: poses.append(conv.pose_from_odometry(m)), STATE_QOS)
+    behavior_pub = node.create_publisher(Float64MultiArray, '/hexapod/behavior', COMMAND_QOS)
+    client.wait_for_publishers(('/hexapod/behavior_outcome', '/hexapod/odom'))
+    client.spin_until(lambda: behavior_pub.get_subscription_count() > 0, 30, 'sim_bridge')
+    archive = load_archive(default_archive_path())
+    forward = archive.params[int(np.argmax(archive.generic_reward[:, 0]))]
+    mine = lambda: [o for o in outcomes if o.behavior_id >= 777_000]  # noqa: E731
+    for k in range(6):
+        behavior_pub.publish(conv.behavior_to_msg(forward, 777_000 + k))
+    client.spin_until(lambda: mine(), 30, 'the first gait')
+    reset = client.call(reset_cli, Trigger.Request())
+    assert reset.success and 'queued' in reset.message, reset.message
+    assert len(mine()) < 6  # answered while gaits were still to run
+    client.spin_until(lambda: len(mine()) == 6, 60, 'the six outcomes')
+    client.spin_until(lambda: poses and np.linalg.norm(poses[-1][:2]) < 0.01, 10,
+                      'the robot back at the start after the queued reset')
     assert all(nodes.alive().values()), nodes.logs()
 
 
