@@ -91,7 +91,6 @@ class SimBridge(Node):
         self._work = deque()
         self._busy = False  # the worker holds an item from the queue
         self._next_auto_id = 1_000_000_000  # ids for commands sent without one
-        self._commands_done = 0
 
         self.clock_pub = self.create_publisher(ClockMsg, '/clock', STATE_QOS)
         self.odom_pub = self.create_publisher(conv.Odometry, '/hexapod/odom', STATE_QOS)
@@ -227,7 +226,6 @@ class SimBridge(Node):
             behavior_id=behavior_id, generic_reward=result.observed_generic_reward,
             start_pose=result.observed_start, end_pose=result.observed_end,
             fallen=result.fallen, sim_time=result.sim_time, duty_factors=result.duty_factors)
-        self._commands_done += 1
         # The outcome first: the adapter's next step waits for it, not for the state.
         self.outcome_pub.publish(conv.outcome_to_msg(outcome))
         if result.fallen:
