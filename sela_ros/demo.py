@@ -122,6 +122,7 @@ def run_client(args, damage, out, procs):
     from sela_ros.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
     from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
     from sela_ros.recording import McapRecorder
+    from sela_ros.ros_env import wait_for_publishers
 
     topics = {'/clock': Clock, '/hexapod/odom': Odometry, '/hexapod/joint_states': JointState,
               '/hexapod/behavior': Float64MultiArray,
@@ -175,14 +176,8 @@ def run_client(args, damage, out, procs):
     try:
         # Volatile topics drop what is published before discovery: hear the nodes first
         # (the goal itself is latched, the planner and the adapter would get it anyway).
-        topics_needed = ('/diagnostics', '/hexapod/odom', '/hexapod/behavior_outcome')
-        deadline = time.monotonic() + 60.0
-        while (not all(node.count_publishers(t) for t in topics_needed)
-               and time.monotonic() < deadline):
-            rclpy.spin_once(node, timeout_sec=0.1)
-        settle = time.monotonic() + 0.5
-        while time.monotonic() < settle:
-            rclpy.spin_once(node, timeout_sec=0.05)
+        wait_for_publishers(node, lambda t: rclpy.spin_once(node, timeout_sec=t),
+                            ('/diagnostics', '/hexapod/odom', '/hexapod/behavior_outcome'))
         goal_pub.publish(conv.pose_stamped(args.goal, frame_id='odom'))
         while state['done'] is None and time.monotonic() - start < args.timeout:
             rclpy.spin_once(node, timeout_sec=0.1)

@@ -77,6 +77,10 @@ def load_map_file(path):
                                  data['height'], data.get('obstacles', []))
 
 
+PARAMETER_RULES = {'planner.lookahead': positive_number(' (m)'), 'frame_id': startup_only,
+                   'planner.inflation': non_negative_number(' (m)')}
+
+
 class PlannerNode(Node):
     def __init__(self):
         super().__init__('planner')
@@ -96,8 +100,7 @@ class PlannerNode(Node):
         self.map_error = None
         self.grid = self._load_grid()
         inflation = self.get_parameter('planner.inflation').value
-        problem = first_problem([('planner.inflation', inflation)],
-                                {'planner.inflation': non_negative_number(' (m)')})
+        problem = first_problem([('planner.inflation', inflation)], PARAMETER_RULES)
         if problem:
             self.get_logger().error(f'{problem}; planning without inflation')
             inflation = 0.0
@@ -144,8 +147,7 @@ class PlannerNode(Node):
             return []  # no obstacles given: ROS cannot hold an empty typed array in YAML
 
     def parameters_callback(self, params):
-        rules = {'planner.lookahead': positive_number(' (m)'), 'frame_id': startup_only,
-                 'planner.inflation': non_negative_number(' (m)')}
+        rules = dict(PARAMETER_RULES)
         rules.update({p.name: startup_only for p in params if p.name.startswith('map.')})
         problem = first_problem(((p.name, p.value) for p in params), rules)
         if problem:

@@ -120,12 +120,12 @@ def _octile(a, b):
     return max(dx, dy) + (SQRT2 - 1.0) * min(dx, dy)
 
 
-def _endpoint_cell(grid, xy, which):
+def _endpoint_cell(grid, xy, which, in_obstacle_ok=False):
     try:
         cell = grid.world_to_cell(xy)
     except OffMapError as err:
         raise OffMapError(f'{which} {err}') from None
-    if not grid.is_free(cell):
+    if not in_obstacle_ok and not grid.is_free(cell):
         raise InObstacleError(f'{which} ({xy[0]:g}, {xy[1]:g}) is in an obstacle '
                               f'(cell {cell}; map {grid.bounds_text()})')
     return cell
@@ -319,10 +319,7 @@ class GridPlanner:
     def __call__(self, start_xy, goal_xy) -> np.ndarray:
         start_xy = np.asarray(start_xy, dtype=float).reshape(-1)[:2]
         goal_xy = np.asarray(goal_xy, dtype=float).reshape(-1)[:2]
-        try:
-            start = self.grid.world_to_cell(start_xy)
-        except OffMapError as err:
-            raise OffMapError(f'start {err}') from None
+        start = _endpoint_cell(self.grid, start_xy, 'start', in_obstacle_ok=True)
         goal = _endpoint_cell(self.grid, goal_xy, 'goal')  # in a real obstacle: refused
         grid = self.planning_grid
         free_start, free_goal = nearest_free_cell(grid, start), nearest_free_cell(grid, goal)
@@ -342,8 +339,7 @@ class GridPlanner:
             return path
         # Smooth the part that lies in free space; the way out of an obstacle stays as is.
         k = 1 if free_start != start else 0
-        return np.vstack([path[:k], smooth_path(grid, path[k:])]) if k else \
-            smooth_path(grid, path)
+        return np.vstack([path[:k], smooth_path(grid, path[k:])])
 
 
 def straight_line_planner(start_xy, goal_xy) -> np.ndarray:

@@ -62,3 +62,25 @@ def executable(name):
         raise FileNotFoundError(
             f'no executable {name!r} in {path.parent}: run `make venv` (or colcon build) first')
     return path
+
+
+def wait_for_publishers(node, spin_once, topics, timeout=60.0, settle=0.5):
+    """Spin until ``node`` has discovered a publisher on each of ``topics``, then ``settle`` s.
+
+    On volatile topics what is published before discovery never arrives, so a client that
+    listens to a mission calls this before sending the goal. ``spin_once(timeout_sec)`` spins
+    the node's executor. Returns whether every publisher was found within ``timeout`` s.
+    """
+    import time
+
+    deadline = time.monotonic() + timeout
+    found = False
+    while time.monotonic() < deadline:
+        found = all(node.count_publishers(t) for t in topics)
+        if found:
+            break
+        spin_once(0.05)
+    end = time.monotonic() + settle
+    while time.monotonic() < end:
+        spin_once(0.05)
+    return found

@@ -14,7 +14,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from sela_ros.ros_env import executable, package_prefix, ros_environment
+from sela_ros.ros_env import executable, package_prefix, ros_environment, wait_for_publishers
 
 CONFIG = package_prefix() / 'share' / 'sela_ros' / 'config' / 'sela.yaml'
 
@@ -93,10 +93,11 @@ class Client:
     def wait_for_publishers(self, topics, timeout=60.0, settle=0.5):
         """Wait until this node has discovered a publisher on each topic, then ``settle`` s:
         on volatile topics, what is published before discovery never arrives."""
-        self.spin_until(lambda: all(self.node.count_publishers(t) for t in topics), timeout,
-                        f'publishers on {", ".join(topics)}')
-        end = time.monotonic() + settle
-        self.spin_until(lambda: time.monotonic() > end, settle + 1.0)
+        if not wait_for_publishers(self.node,
+                                   lambda t: self.executor.spin_once(timeout_sec=t), topics,
+                                   timeout, settle):
+            raise TimeoutError(f'timed out after {timeout} s waiting for publishers on '
+                               f'{", ".join(topics)}')
 
     def call(self, client, request, timeout=20.0):
         self.spin_until(client.service_is_ready, timeout, f'service {client.srv_name}')
