@@ -10,12 +10,12 @@ package_name = 'sela_ros'
 # <prefix>/lib/sela_ros/ when the package is pip-installed into the project's .venv.
 CONSOLE_SCRIPTS = [
     'sim_bridge = sim_bridge.node:main',
-    'damage_detector = sela_ros.damage_detector_node:main',
-    'planner = sela_ros.planner_node:main',
-    'sela_adapter = sela_ros.adapter_node:main',
-    'sela-demo = sela_ros.demo:main',
+    'damage_detector = sela_ros.nodes.damage_detector_node:main',
+    'planner = sela_ros.nodes.planner_node:main',
+    'sela_adapter = sela_ros.nodes.adapter_node:main',
+    'sela-demo = sela_ros.tools.demo:main',
     'sela-experiment = sela_ros.experiments.cli:main',
-    'sela-build-archive = sela_ros.build_archive:main',
+    'sela-build-archive = sela_ros.tools.build_archive:main',
 ]
 
 setup(

@@ -14,7 +14,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
 
-from sela_ros.map_elites import (  # noqa: E402
+from sela_ros.qd.map_elites import (  # noqa: E402
     HexapodEvaluator,
     ProcessPoolEvaluator,
     SerialEvaluator,

@@ -25,15 +25,15 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random().randint(100, 101)))
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
-from sela_ros.ros_env import ensure_ros_environment  # noqa: E402
+from sela_ros.tools.ros_env import ensure_ros_environment  # noqa: E402
 
 ensure_ros_environment()
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 
 from sela_ros import conversions as conv  # noqa: E402
-from sela_ros.adapter_node import MISSION_STATUS  # noqa: E402
-from sela_ros.qos import LATCHED_QOS, STATE_QOS  # noqa: E402
+from sela_ros.nodes.adapter_node import MISSION_STATUS  # noqa: E402
+from sela_ros.nodes.qos import LATCHED_QOS, STATE_QOS  # noqa: E402
 
 from ros_graph import CONFIG, Client, NodeProcesses  # noqa: E402
 

@@ -17,7 +17,7 @@ import time
 
 import numpy as np  # noqa: E402
 
-from sela_ros.sela import SELA, PointMotion, observed_generic_reward  # noqa: E402
+from sela_ros.core.sela import SELA, PointMotion, observed_generic_reward  # noqa: E402
 
 
 def bench_step(num_candidates, observations=20, dim=8, repeats=15, seed=0):

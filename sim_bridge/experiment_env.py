@@ -1,4 +1,4 @@
-"""The damaged hexapod as a ``sela_ros.baselines.Environment``, and the oracle's table.
+"""The damaged hexapod as a ``sela_ros.experiments.baselines.Environment``, and the oracle's table.
 
 ROS-free. :class:`HexapodEnvironment` lets the in-process experiment
 (``sela-experiment hexapod``) drive the PyBullet hexapod through the same runners as the

@@ -21,11 +21,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from sela_ros import conversions as conv
-from sela_ros.heartbeat import add_heartbeat
-from sela_ros.node_main import run_node
-from sela_ros.params import first_problem, non_negative_number, positive_number, startup_only
-from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes.heartbeat import add_heartbeat
+from sela_ros.nodes.node_main import run_node
+from sela_ros.nodes.params import first_problem, non_negative_number, positive_number, startup_only
+from sela_ros.nodes.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 from sim_bridge.damage import DamageSpecError, parse_damage
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.hexapod import Hexapod

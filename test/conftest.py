@@ -52,6 +52,6 @@ def pytest_report_header(config):
 @pytest.fixture
 def ros_env():
     """Environment for a child process that talks DDS in this test run's domain."""
-    from sela_ros.ros_env import ros_environment
+    from sela_ros.tools.ros_env import ros_environment
 
     return ros_environment(domain_id=int(os.environ['ROS_DOMAIN_ID']))

@@ -14,7 +14,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from sela_ros.ros_env import executable, package_prefix, ros_environment, wait_for_publishers
+from sela_ros.tools.ros_env import executable, package_prefix, ros_environment, wait_for_publishers
 
 CONFIG = package_prefix() / 'share' / 'sela_ros' / 'config' / 'sela.yaml'
 

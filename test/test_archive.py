@@ -5,7 +5,7 @@ import os
 import numpy as np
 import pytest
 
-from sela_ros.archive import (
+from sela_ros.core.archive import (
     REQUIRED_METADATA_KEYS,
     Archive,
     ArchiveError,

@@ -1,4 +1,4 @@
-"""Property-based tests of every message <-> array conversion (sela_ros.conversions)."""
+"""Property-based tests of every message <-> array conversion (sela_ros.nodes.conversions)."""
 import math
 
 import numpy as np
@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from sela_ros import conversions as conv
+from sela_ros.nodes import conversions as conv
 
 unit = st.floats(0.0, 1.0, allow_nan=False)
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)

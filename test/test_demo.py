@@ -4,7 +4,7 @@ import subprocess
 
 import pytest
 
-from sela_ros.ros_env import executable
+from sela_ros.tools.ros_env import executable
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 

@@ -12,9 +12,9 @@ from rcl_interfaces.srv import SetParameters
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
-from sela_ros import conversions as conv
-from sela_ros.adapter_node import MISSION_STATUS
-from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes.adapter_node import MISSION_STATUS
+from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
 
 from ros_graph import Client, NodeProcesses
 
@@ -225,7 +225,7 @@ FALLING_GAIT = 21  # of the shipped archive: tips the robot over without its fro
 
 
 def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_failed(tmp_path):
-    from sela_ros.archive import Archive, default_archive_path, load_archive
+    from sela_ros.core.archive import Archive, default_archive_path, load_archive
 
     # An archive whose most attractive gait (straight to the first waypoint, on paper) is
     # one that makes the damaged robot fall.

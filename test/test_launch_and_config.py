@@ -53,7 +53,7 @@ def test_launch_starts_the_four_nodes_with_the_config(launch_description):
 def test_config_is_keyed_by_node_name_with_ros_parameters():
     config = yaml.safe_load((ROOT / 'config' / 'sela.yaml').read_text())
     assert set(config) == set(NODES)
-    from sela_ros.planner_node import load_map_file
+    from sela_ros.nodes.planner_node import load_map_file
 
     assert load_map_file(ROOT / 'config' / 'obstacle_map.yaml').occupied.any()
     for node in NODES:
@@ -65,8 +65,8 @@ def test_config_is_keyed_by_node_name_with_ros_parameters():
 
 def test_config_defaults_are_the_code_defaults():
     """One source of truth: the YAML says what the code would do without it."""
-    from sela_ros.damage_detection import DetectorConfig
-    from sela_ros.sela import SELAConfig
+    from sela_ros.core.damage_detection import DetectorConfig
+    from sela_ros.core.sela import SELAConfig
 
     config = yaml.safe_load((ROOT / 'config' / 'sela.yaml').read_text())
     adapter = config['sela_adapter']['ros__parameters']

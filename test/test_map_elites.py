@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sela_ros.archive import load_archive
-from sela_ros.map_elites import (
+from sela_ros.core.archive import load_archive
+from sela_ros.qd.map_elites import (
     DaskEvaluator,
     EvaluationResult,
     GridArchive,
@@ -180,7 +180,7 @@ def test_invalid_results_are_counted():
 
 
 def _cli(out, ckpt, *extra):
-    return [sys.executable, '-m', 'sela_ros.build_archive', '--synthetic',
+    return [sys.executable, '-m', 'sela_ros.tools.build_archive', '--synthetic',
             '--synthetic-delay', '0.004', '--evaluations', '1500', '--batch-size', '50',
             '--workers', '1', '--seed', '5', '--grid', '16', '16', '--bounds', '-1', '1', '-1',
             '1', '--checkpoint-every', '3', '--checkpoint', str(ckpt), '--out', str(out),
@@ -229,7 +229,7 @@ def test_cli_usage_errors(tmp_path):
                   '--bounds', '1', '0', '0', '1'],
                  ['--evaluations', '10'],
                  ['--evaluations', '10', '--out', str(tmp_path / 'a.npz'), '--resume']):
-        proc = subprocess.run([sys.executable, '-m', 'sela_ros.build_archive', '--synthetic',
+        proc = subprocess.run([sys.executable, '-m', 'sela_ros.tools.build_archive', '--synthetic',
                                *args], cwd=REPO, capture_output=True, text=True, timeout=60,
                               env=dict(os.environ, PYTHONPATH=str(REPO)))
         assert proc.returncode == 2, (args, proc.stderr)
@@ -237,7 +237,7 @@ def test_cli_usage_errors(tmp_path):
 
 
 def test_cli_writes_archive_and_figure(tmp_path):
-    from sela_ros.build_archive import main
+    from sela_ros.tools.build_archive import main
 
     out, fig = tmp_path / 'a.npz', tmp_path / 'a.png'
     assert main(['--synthetic', '--evaluations', '600', '--batch-size', '100', '--workers', '1',

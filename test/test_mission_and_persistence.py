@@ -9,11 +9,11 @@ import time
 import numpy as np
 import pytest
 
-from sela_ros.heartbeat import SilenceWatch
-from sela_ros.mission import MissionLogic, as_seen_in_odometry
-from sela_ros.persistence import StateError, atomic_write_json, load_state, set_aside
-from sela_ros.planner_node import grid_from_description, load_map_file
-from sela_ros.sela import SELA, SE2Motion, SELAConfig
+from sela_ros.core.mission import MissionLogic, as_seen_in_odometry
+from sela_ros.core.persistence import StateError, atomic_write_json, load_state, set_aside
+from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
+from sela_ros.nodes.heartbeat import SilenceWatch
+from sela_ros.nodes.planner_node import grid_from_description, load_map_file
 
 
 def _sela():
@@ -80,7 +80,7 @@ def test_state_file_round_trip_and_bad_files(tmp_path):
 def test_atomic_write_survives_sigkill(tmp_path):
     """A writer killed mid-loop leaves a complete file: the last one it wrote."""
     path = tmp_path / 'state.json'
-    code = ('import sys\nfrom sela_ros.persistence import atomic_write_json\ni = 0\n'
+    code = ('import sys\nfrom sela_ros.core.persistence import atomic_write_json\ni = 0\n'
             'while True:\n    atomic_write_json(sys.argv[1], {"i": i, "pad": "x" * 200000})\n'
             '    i += 1\n')
     proc = subprocess.Popen([sys.executable, '-c', code, str(path)],

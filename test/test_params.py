@@ -4,8 +4,8 @@ import math
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sela_ros.damage_detection import DetectorConfig
-from sela_ros.params import (
+from sela_ros.core.damage_detection import DetectorConfig
+from sela_ros.nodes.params import (
     STARTUP_ONLY,
     first_problem,
     non_negative_int,
@@ -88,7 +88,7 @@ def test_detector_config_validation(threshold, window, cooldown, max_sigma):
 
 
 def test_params_file_problems_say_which_file_where_and_what(tmp_path):
-    from sela_ros.params import params_file_problems
+    from sela_ros.nodes.params import params_file_problems
 
     good = tmp_path / 'good.yaml'
     good.write_text('planner:\n  ros__parameters:\n    planner.lookahead: 0.6\n')
@@ -109,7 +109,7 @@ def test_a_node_given_a_malformed_params_file_says_where_and_does_not_start(tmp_
     import os
     import subprocess
 
-    from sela_ros.ros_env import executable, ros_environment
+    from sela_ros.tools.ros_env import executable, ros_environment
 
     broken = tmp_path / 'broken.yaml'
     broken.write_text('planner:\n  ros__parameters:\n    planner.lookahead: [0.6\n')

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from sela_ros.planning import (
+from sela_ros.core.planning import (
     GridPlanner,
     InObstacleError,
     OccupancyGrid,

@@ -11,11 +11,11 @@ from rcl_interfaces.srv import SetParameters
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
-from sela_ros import conversions as conv
-from sela_ros.adapter_node import MISSION_STATUS
-from sela_ros.archive import default_archive_path, load_archive
-from sela_ros.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
-from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+from sela_ros.core.archive import default_archive_path, load_archive
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes.adapter_node import MISSION_STATUS
+from sela_ros.nodes.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
+from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
 
 from ros_graph import CONFIG, Client, NodeProcesses
 
@@ -75,10 +75,10 @@ def _config():
 
 def _in_process_mission(damage, seed, goal, on_step=None):
     """The same mission, same configuration, run in process (no DDS)."""
-    from sela_ros.damage_detection import DetectorConfig
-    from sela_ros.mission import run_mission
-    from sela_ros.planner_node import grid_from_description
-    from sela_ros.planning import GridPlanner
+    from sela_ros.core.damage_detection import DetectorConfig
+    from sela_ros.core.mission import run_mission
+    from sela_ros.core.planning import GridPlanner
+    from sela_ros.nodes.planner_node import grid_from_description
     from sim_bridge.environment import ObservedHexapod
     from sim_bridge.hexapod import Hexapod
 

@@ -5,15 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from sela_ros.baselines import METHODS, run_oracle, run_sela
-from sela_ros.sela import (
+from sela_ros.core.sela import (
     SELA,
     PointMotion,
     SE2Motion,
     SELAConfig,
     observed_generic_reward,
 )
-from sela_ros.toy import ToyWorld, toy_problem
+from sela_ros.experiments.baselines import METHODS, run_oracle, run_sela
+from sela_ros.experiments.toy_world import ToyWorld, toy_problem
 
 
 def toy(noise_std=0.01, seed=0):

@@ -3,7 +3,7 @@
 import argparse
 import math
 
-from sela_ros.baselines import METHODS
+from sela_ros.experiments.baselines import METHODS
 
 #: Default std (m) of the noise on observed positions in both experiments. The paper writes
 #: "sigma^2 = 0.01"; read literally that is a std of 0.1 m (as large as a toy step and as the

@@ -31,9 +31,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from sela_ros.baselines import METHODS, Problem
+from sela_ros.core.sela import SE2Motion, SELAConfig
 from sela_ros.experiments import arguments
-from sela_ros.sela import SE2Motion, SELAConfig
+from sela_ros.experiments.baselines import METHODS, Problem
 
 HEXAPOD_METHODS = ('sela', 'ite_uncertainty', 'ite_4dir', 'oracle')
 # Chosen by measurement (docs/hexapod_results.md): 0.5-1.0 m are alike, 0.4 m and below worse.
@@ -43,7 +43,7 @@ FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never ch
 
 
 def _archive(text):
-    from sela_ros.archive import ArchiveError, load_archive
+    from sela_ros.core.archive import ArchiveError, load_archive
     from sim_bridge.hexapod import simulator_settings
 
     try:
@@ -62,7 +62,7 @@ def _archive(text):
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment hexapod`` (the common ones are added by the CLI)."""
-    from sela_ros.archive import default_archive_path
+    from sela_ros.core.archive import default_archive_path
 
     parser.add_argument('--archive', type=_archive, default=str(default_archive_path()),
                         help='behaviour-performance map (.npz; default: the shipped '
@@ -134,7 +134,7 @@ _WORKER = {}
 
 
 def _worker_state(archive_path):
-    from sela_ros.archive import load_archive
+    from sela_ros.core.archive import load_archive
 
     if _WORKER.get('path') != archive_path:
         _WORKER['path'] = archive_path
@@ -169,7 +169,7 @@ def run_method(job):
 
 def run(args, progress=None) -> dict:
     """Run the experiment described by ``args``; returns the results.json document."""
-    from sela_ros.archive import load_archive
+    from sela_ros.core.archive import load_archive
     from sim_bridge.experiment_env import archive_checksum, oracle_table
 
     archive = load_archive(args.archive)

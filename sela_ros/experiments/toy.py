@@ -6,9 +6,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from sela_ros.baselines import METHODS
 from sela_ros.experiments import arguments
-from sela_ros.toy import ToyWorld, toy_problem
+from sela_ros.experiments.baselines import METHODS
+from sela_ros.experiments.toy_world import ToyWorld, toy_problem
 
 DEFAULT_METHODS = ('sela', 'random_babbling', 'ite_4dir', 'oracle')
 NUM_BEHAVIOURS = 1000

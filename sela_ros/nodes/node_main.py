@@ -5,7 +5,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 
-from sela_ros.params import params_file_problems
+from sela_ros.nodes.params import params_file_problems
 
 #: Exit status of a node that refuses to start on a bad configuration (as argparse's).
 EXIT_BAD_CONFIGURATION = 2

@@ -25,10 +25,10 @@ from typing import Protocol
 
 import numpy as np
 
-from sela_ros import acquisition
-from sela_ros.gp import CandidateSetGP
-from sela_ros.planning import PlanningError, next_waypoint, straight_line_planner
-from sela_ros.sela import SELA, SELAConfig, observed_generic_reward
+from sela_ros.core import acquisition
+from sela_ros.core.gp import CandidateSetGP
+from sela_ros.core.planning import PlanningError, next_waypoint, straight_line_planner
+from sela_ros.core.sela import SELA, SELAConfig, observed_generic_reward
 
 
 class Environment(Protocol):

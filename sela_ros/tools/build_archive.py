@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sela_ros.archive import Archive
-from sela_ros.map_elites import (
+from sela_ros.core.archive import Archive
+from sela_ros.qd.map_elites import (
     DaskEvaluator,
     HexapodEvaluator,
     MapElites,
@@ -155,7 +155,7 @@ def archive_figure(archive: Archive, path: str | os.PathLike) -> Path:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from sela_ros.map_elites import GridArchive
+    from sela_ros.qd.map_elites import GridArchive
 
     grid = GridArchive(archive.metadata['grid_shape'], archive.descriptor_bounds)
     cells = grid.index_of(archive.descriptors)

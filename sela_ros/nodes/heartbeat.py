@@ -4,8 +4,8 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.clock import Clock, ClockType
 
-from sela_ros.conversions import diagnostic_array, diagnostic_status
-from sela_ros.qos import STATE_QOS
+from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
+from sela_ros.nodes.qos import STATE_QOS
 
 SUFFIX = ': heartbeat'
 

@@ -19,9 +19,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from sela_ros.damage_detection import DamageDetector, DetectorConfig
-from sela_ros.planning import next_waypoint
-from sela_ros.sela import SELA, SE2Motion, SELAConfig
+from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
+from sela_ros.core.planning import next_waypoint
+from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
 
 # SELA receives the waypoint itself (a two-point path) and must not shorten it.
 _NO_LOOKAHEAD = 1e9

@@ -38,7 +38,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sela_ros.archive import Archive, atomic_savez, make_metadata
+from sela_ros.core.archive import Archive, atomic_savez, make_metadata
 
 CHECKPOINT_FORMAT_VERSION = 1
 VARIATIONS = ('iso_line', 'polynomial')
@@ -733,7 +733,7 @@ class MapElites:
         return run
 
     def to_archive(self, **metadata: Any) -> Archive:
-        """The elites as an :class:`~sela_ros.archive.Archive` (for SELA, or to save).
+        """The elites as an :class:`~sela_ros.core.archive.Archive` (for SELA, or to save).
 
         Args:
             **metadata: simulator settings, descriptor/fitness names, seed, ...; the grid

@@ -51,7 +51,7 @@ def build_parser():
 def main(argv=None):
     args = build_parser().parse_args(argv)
     damage = args.damage
-    from sela_ros.ros_env import (
+    from sela_ros.tools.ros_env import (
         ensure_ros_environment,
         executable,
         package_prefix,
@@ -117,12 +117,12 @@ def run_client(args, damage, out, procs):
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, Float64MultiArray
 
-    from sela_ros import conversions as conv
-    from sela_ros.adapter_node import MISSION_STATUS
-    from sela_ros.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
-    from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
-    from sela_ros.recording import McapRecorder
-    from sela_ros.ros_env import wait_for_publishers
+    from sela_ros.nodes import conversions as conv
+    from sela_ros.nodes.adapter_node import MISSION_STATUS
+    from sela_ros.nodes.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
+    from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+    from sela_ros.tools.recording import McapRecorder
+    from sela_ros.tools.ros_env import wait_for_publishers
 
     topics = {'/clock': Clock, '/hexapod/odom': Odometry, '/hexapod/joint_states': JointState,
               '/hexapod/behavior': Float64MultiArray,

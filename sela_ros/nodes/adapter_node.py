@@ -46,15 +46,27 @@ from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
-from sela_ros import conversions as conv
-from sela_ros.archive import ArchiveError, check_settings, default_archive_path, load_archive
-from sela_ros.heartbeat import add_heartbeat
-from sela_ros.mission import MissionLogic, make_sela
-from sela_ros.node_main import run_node
-from sela_ros.params import first_problem, positive_int, positive_number, startup_only, string
-from sela_ros.persistence import STATE_FORMAT, StateError, atomic_write_json, load_state, set_aside
-from sela_ros.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
-from sela_ros.sela import Decision
+from sela_ros.core.archive import ArchiveError, check_settings, default_archive_path, load_archive
+from sela_ros.core.mission import MissionLogic, make_sela
+from sela_ros.core.persistence import (
+    STATE_FORMAT,
+    StateError,
+    atomic_write_json,
+    load_state,
+    set_aside,
+)
+from sela_ros.core.sela import Decision
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes.heartbeat import add_heartbeat
+from sela_ros.nodes.node_main import run_node
+from sela_ros.nodes.params import (
+    first_problem,
+    positive_int,
+    positive_number,
+    startup_only,
+    string,
+)
+from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
 
 DETECTOR_STATUS = 'damage_detector: prediction error'
 MISSION_STATUS = 'sela_adapter: mission'

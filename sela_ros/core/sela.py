@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sela_ros import acquisition, gp
-from sela_ros.planning import next_waypoint, straight_line_planner
+from sela_ros.core import acquisition, gp
+from sela_ros.core.planning import next_waypoint, straight_line_planner
 
 
 def wrap_angle(angle):
@@ -145,7 +145,7 @@ class SELA:
             prior mean of the GPs), ``k == motion.gr_dim``.
         motion: :class:`PointMotion` or :class:`SE2Motion`.
         planner: callable ``(start_xy, goal_xy) -> path (n, 2)`` (e.g. a
-            :class:`~sela_ros.planning.GridPlanner`); None: the straight line.
+            :class:`~sela_ros.core.planning.GridPlanner`); None: the straight line.
         goal: goal ``(x, y)``; may be set later with :meth:`set_goal`.
         config: :class:`SELAConfig` or a dict of dotted names.
     """

@@ -21,12 +21,12 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from sela_ros import conversions as conv
-from sela_ros.heartbeat import add_heartbeat
-from sela_ros.node_main import run_node
-from sela_ros.params import first_problem, non_negative_number, positive_number, startup_only
-from sela_ros.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
-from sela_ros.qos import LATCHED_QOS, STATE_QOS
+from sela_ros.core.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes.heartbeat import add_heartbeat
+from sela_ros.nodes.node_main import run_node
+from sela_ros.nodes.params import first_problem, non_negative_number, positive_number, startup_only
+from sela_ros.nodes.qos import LATCHED_QOS, STATE_QOS
 
 
 def grid_from_description(resolution, origin, width, height, obstacles):

@@ -1,6 +1,6 @@
 """The behaviour-performance map ("archive") SELA consumes: atomic save, validated load.
 
-An :class:`Archive` is what MAP-Elites leaves behind (see :mod:`sela_ros.map_elites`): for
+An :class:`Archive` is what MAP-Elites leaves behind (see :mod:`sela_ros.qd.map_elites`): for
 each of its ``M`` elites the 36 controller parameters, the raw behaviour descriptor, the
 generic reward ``(dx, dy, dyaw)`` it produced on the simulated intact robot and its fitness,
 plus a metadata dict that says how the map was built. SELA uses the generic reward as the
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from sela_ros.persistence import atomic_write
+from sela_ros.core.persistence import atomic_write
 
 #: Version of the on-disk layout; bump it when keys or meanings change.
 ARCHIVE_FORMAT_VERSION = 1
@@ -292,4 +292,4 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
 
 def default_archive_path() -> Path:
     """Path of the archive shipped inside the installed package (``sela_ros/data``)."""
-    return Path(__file__).resolve().parent / 'data' / 'hexapod_archive.npz'
+    return Path(__file__).resolve().parent.parent / 'data' / 'hexapod_archive.npz'

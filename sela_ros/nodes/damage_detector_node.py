@@ -1,7 +1,7 @@
 """The ``damage_detector`` node: compares each outcome with the prediction that preceded it.
 
 Pairs ``/sela/prediction`` and ``/hexapod/behavior_outcome`` by command id, judges the error
-with :class:`sela_ros.damage_detection.DamageDetector` and publishes one verdict per outcome
+with :class:`sela_ros.core.damage_detection.DamageDetector` and publishes one verdict per outcome
 on ``/diagnostics`` (name ``damage_detector: prediction error``; level ERROR when damage is
 detected). When it detects damage it first calls ``/sela_adapter/adapt`` and publishes the
 verdict once the adapter has answered, so that the adapter's next choice already knows.
@@ -13,12 +13,12 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from sela_ros import conversions as conv
-from sela_ros.damage_detection import DamageDetector, DetectorConfig
-from sela_ros.heartbeat import SilenceWatch, add_heartbeat
-from sela_ros.node_main import run_node
-from sela_ros.params import first_problem, positive_number, startup_only
-from sela_ros.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
+from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes.heartbeat import SilenceWatch, add_heartbeat
+from sela_ros.nodes.node_main import run_node
+from sela_ros.nodes.params import first_problem, positive_number, startup_only
+from sela_ros.nodes.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 
 STATUS_NAME = 'damage_detector: prediction error'
 ADAPT_TIMEOUT = 5.0

@@ -1,0 +1,2 @@
+"""Map building (quality diversity): archives, emitters, the MAP-Elites loop, checkpoints
+and executors."""

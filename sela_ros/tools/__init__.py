@@ -1,0 +1,1 @@
+"""Command-line tools over the nodes and the core: the demo, the archive builder, recording."""
