@@ -43,7 +43,8 @@ def test_config_dotted_names():
     assert c.gp_kernel_sigma == 0.2 and c.acquisition_ucb_alpha == 0.1
     assert c.goal_eps == 0.1 and c.gp_noise == 0.001
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
-                                'acquisition.ucb.alpha', 'planner.lookahead', 'goal.eps'}
+                                'acquisition.ucb.alpha', 'planner.lookahead', 'goal.eps',
+                                'fall.risk.threshold'}
     with pytest.raises(ValueError, match="unknown SELA parameter.*gp.kernel.sgima"):
         SELAConfig.from_dict({'gp.kernel.sgima': 0.2})
     with pytest.raises(ValueError, match='goal.eps'):

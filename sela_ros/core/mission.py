@@ -88,6 +88,7 @@ class MissionLogic:
         """Step 4: record the outcome of ``decision`` and learn from it when adapting."""
         observed_gr = np.asarray(observed_gr, dtype=float)
         learnt = np.zeros_like(observed_gr) if fallen and self.reset_on_fall else observed_gr
+        self.sela.tell_fall(decision.index, bool(fallen))
         if self.adapting:
             self.sela.tell(decision.index, learnt)
         self.last = (decision.index, learnt)

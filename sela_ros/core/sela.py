@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sela_ros.core import acquisition, gp
+from sela_ros.core import acquisition, fall_risk, gp
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 
 
@@ -90,6 +90,8 @@ class SELAConfig:
     acquisition_ucb_alpha: float = acquisition.DEFAULT_ALPHA
     planner_lookahead: float = 0.1
     goal_eps: float = 0.1
+    # Risk of falling accepted (fall-aware acquisition); 1 or more: falls are not avoided.
+    fall_risk_threshold: float = fall_risk.DEFAULT_THRESHOLD
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -134,6 +136,7 @@ class Decision:
     reward: float  # specialised reward: -||waypoint - predicted xy||
     sigma: float   # posterior standard deviation of the chosen behaviour
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    fall_risk: float = 0.0  # predicted risk that the chosen behaviour tips the robot over
 
 
 class SELA:
@@ -148,10 +151,12 @@ class SELA:
             :class:`~sela_ros.core.planning.GridPlanner`); None: the straight line.
         goal: goal ``(x, y)``; may be set later with :meth:`set_goal`.
         config: :class:`SELAConfig` or a dict of dotted names.
+        prior_fall_rate: ``(M,)`` fall rate of each behaviour on the robot the archive was
+            built on (prior of :class:`~sela_ros.core.fall_risk.FallRisk`); None: zeros.
     """
 
     def __init__(self, candidates_normalised, prior_gr, motion, planner: Callable | None
-                 = None, goal=None, config=None):
+                 = None, goal=None, config=None, prior_fall_rate=None):
         candidates = np.asarray(candidates_normalised, dtype=float)
         prior_gr = np.asarray(prior_gr, dtype=float)
         if candidates.ndim != 2:
@@ -169,10 +174,12 @@ class SELA:
         self.planner = planner or straight_line_planner
         self._candidates = candidates
         self._prior = prior_gr
+        self._prior_fall_rate = prior_fall_rate
         self.goal = None
         if goal is not None:
             self.set_goal(goal)
         self.reset_learning()
+        self.forget_falls()
 
     @property
     def num_candidates(self) -> int:
@@ -182,11 +189,26 @@ class SELA:
     def gp(self) -> gp.CandidateSetGP:
         return self._gp
 
+    @property
+    def fall_risk(self) -> fall_risk.FallRisk:
+        return self._fall
+
     def reset_learning(self) -> None:
-        """Forget every observation: back to the prior (the intact robot's archive)."""
+        """Forget every observed generic reward: back to the prior (the intact map).
+
+        What was learnt about falls stays (see :meth:`forget_falls`): a gait that tipped this
+        robot over is no safer because adaptation restarts.
+        """
         c = self.config
         self._gp = gp.CandidateSetGP(self._candidates, self._prior, sigma=c.gp_kernel_sigma,
                                      variance=c.gp_kernel_variance, noise=c.gp_noise)
+
+    def forget_falls(self) -> None:
+        """Forget every observed fall: back to the prior fall rates."""
+        c = self.config
+        self._fall = fall_risk.FallRisk(self._candidates, self._prior_fall_rate,
+                                        sigma=c.gp_kernel_sigma, variance=c.gp_kernel_variance,
+                                        noise=c.gp_noise)
 
     def set_goal(self, goal) -> None:
         goal = np.asarray(goal, dtype=float).reshape(-1)
@@ -222,15 +244,25 @@ class SELA:
         x, y = self.motion.predict_xy_columns(pose, mu_t)
         reward = -np.hypot(x - waypoint[0], y - waypoint[1])
         sigma = np.sqrt(var)
-        index = acquisition.ucb(reward, sigma, self.config.acquisition_ucb_alpha)
+        scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
+        risk = self._fall.risk()
+        if self._fall.falls or self._prior_fall_rate is not None:
+            scores = fall_risk.safe_choice(scores, risk, self.config.fall_risk_threshold)
+        index = int(np.argmax(scores))
         gr = mu_t[:, index].copy()
         return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
                         predicted_pose=self.motion.predict(pose, gr),
-                        reward=float(reward[index]), sigma=float(sigma[index]), path=path)
+                        reward=float(reward[index]), sigma=float(sigma[index]), path=path,
+                        fall_risk=float(risk[index]))
 
     def tell(self, index: int, observed_gr) -> None:
         """Learn that behaviour ``index`` produced the generic reward ``observed_gr``."""
         self._gp.add_sample(index, observed_gr)
+
+    def tell_fall(self, index: int, fallen: bool) -> None:
+        """Learn whether behaviour ``index`` tipped the robot over. Every step tells it,
+        also while the map is still trusted and generic rewards are not learnt."""
+        self._fall.tell(index, fallen)
 
     @property
     def observations(self):
@@ -240,10 +272,12 @@ class SELA:
     def state_dict(self) -> dict:
         """What was learned, as JSON-able plain lists."""
         idx, grs = self.observations
+        fall_idx, fallen = self._fall.observations
         return {'num_candidates': self.num_candidates, 'gr_dim': self.motion.gr_dim,
                 'config': self.config.to_dict(),
                 'goal': None if self.goal is None else self.goal.tolist(),
-                'indices': idx.tolist(), 'generic_rewards': grs.tolist()}
+                'indices': idx.tolist(), 'generic_rewards': grs.tolist(),
+                'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist()}
 
     def load_state_dict(self, state: dict) -> None:
         """Restore what :meth:`state_dict` saved (same archive); replays the observations."""
@@ -258,6 +292,14 @@ class SELA:
         indices = list(state.get('indices', []))
         grs = np.asarray(state.get('generic_rewards', []), dtype=float).reshape(
             len(indices), self.motion.gr_dim)
+        fall_indices = [int(i) for i in state.get('fall_indices', [])]
+        fallen = [bool(f) for f in state.get('fallen', [])]
+        if len(fall_indices) != len(fallen):
+            raise ValueError(f'state has {len(fall_indices)} fall_indices but {len(fallen)} '
+                             'fallen flags')
         self.reset_learning()
+        self.forget_falls()
         for i, y in zip(indices, grs):
             self.tell(int(i), y)
+        for i, f in zip(fall_indices, fallen):
+            self.tell_fall(i, f)

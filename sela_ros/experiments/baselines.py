@@ -138,10 +138,12 @@ def _task_phase(env, problem, choose, learn=None, learning_iterations=0) -> RunR
                 return RunResult(True, steps, learning_iterations)
             before = np.asarray(env.observed_pose(), dtype=float).copy()
             index = choose(before)
+            falls = getattr(env, 'falls', 0)
             after = env.execute(index)
             steps += 1
             if learn is not None:
-                learn(index, observed_generic_reward(before, after, problem.motion))
+                learn(index, observed_generic_reward(before, after, problem.motion),
+                      getattr(env, 'falls', 0) > falls)
     except PlanningError:
         return RunResult(False, steps, learning_iterations)
     return RunResult(_reached(env, problem), steps, learning_iterations)
@@ -158,7 +160,12 @@ def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
     """SELA: learn while doing the task (no learning phase)."""
     env.reset()
     sela = problem.make_sela()
-    return _task_phase(env, problem, lambda pose: sela.ask(pose).index, learn=sela.tell)
+
+    def learn(index, gr, fallen):
+        sela.tell_fall(index, fallen)
+        sela.tell(index, gr)
+
+    return _task_phase(env, problem, lambda pose: sela.ask(pose).index, learn=learn)
 
 
 def _learning_step(env, problem, sela, index):

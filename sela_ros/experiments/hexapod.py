@@ -84,6 +84,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--alpha', type=arguments.non_negative_float,
                         default=SELAConfig().acquisition_ucb_alpha,
                         help="acquisition.ucb.alpha (default %(default)s, the paper's)")
+    parser.add_argument('--fall-risk', type=arguments.positive_float,
+                        default=SELAConfig().fall_risk_threshold,
+                        help='fall.risk.threshold: SELA avoids gaits predicted to fall with '
+                             'a higher risk (default %(default)s; 1 or more: no avoidance)')
     parser.add_argument('--methods', type=arguments.method_list, default=list(HEXAPOD_METHODS),
                         help='comma-separated methods (default: %(default)s; also '
                              'random_babbling)')
@@ -108,9 +112,11 @@ def ite_targets(prior_gr) -> np.ndarray:
 
 
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
-                 ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None) -> Problem:
+                 ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
+                 fall_risk=None) -> Problem:
     defaults = SELAConfig()
     config = SELAConfig(planner_lookahead=lookahead,
+                        fall_risk_threshold=fall_risk or defaults.fall_risk_threshold,
                         gp_kernel_sigma=kernel_sigma or defaults.gp_kernel_sigma,
                         acquisition_ucb_alpha=defaults.acquisition_ucb_alpha if alpha is None
                         else alpha)
@@ -145,7 +151,7 @@ def _worker_state(archive_path):
 def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
-     ite_iterations, oracle_gr, kernel_sigma, alpha) = job
+     ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk) = job
     from sim_bridge.experiment_env import HexapodEnvironment
 
     archive = _worker_state(archive_path)
@@ -157,7 +163,7 @@ def run_method(job):
                             dt=settings['dt'], gait_duration=settings['gait_duration']) as env:
         problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
                                ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
-                               alpha=alpha)
+                               alpha=alpha, fall_risk=fall_risk)
         result = METHODS[name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         return {'success': bool(result.success), 'steps': int(result.steps),
@@ -191,7 +197,8 @@ def run(args, progress=None) -> dict:
         for name, child in zip(args.methods, seed.spawn(len(args.methods))):
             jobs.append((name, child, os.path.abspath(args.archive), args.damage, args.goal,
                          args.noise_std, args.lookahead, args.max_steps,
-                         args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha))
+                         args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
+                         args.fall_risk))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -237,6 +244,7 @@ def run(args, progress=None) -> dict:
                            'ite_max_iterations': args.ite_iterations,
                            'gp.kernel.sigma': args.kernel_sigma,
                            'acquisition.ucb.alpha': args.alpha,
+                           'fall.risk.threshold': args.fall_risk,
                            'archive': os.path.abspath(args.archive),
                            'archive_checksum': archive_checksum(archive.params),
                            'num_behaviours': len(archive),

@@ -71,7 +71,8 @@ from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
 DETECTOR_STATUS = 'damage_detector: prediction error'
 MISSION_STATUS = 'sela_adapter: mission'
 TICK_PERIOD = 0.25  # s (wall)
-SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps')
+SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
+             'fall.risk.threshold')
 
 
 class SelaAdapter(Node):
@@ -82,6 +83,7 @@ class SelaAdapter(Node):
         self.declare_parameter('gp.noise', 0.001)
         self.declare_parameter('acquisition.ucb.alpha', 0.05)
         self.declare_parameter('goal.eps', 0.1)
+        self.declare_parameter('fall.risk.threshold', 0.3)
         self.declare_parameter('max_steps', 100)
         self.declare_parameter('detector_timeout', 2.0)
         self.declare_parameter('outcome_timeout', 10.0)

@@ -1,0 +1,96 @@
+"""Fall-aware adaptation: the fall GP and the acquisition that keeps away from risky gaits."""
+import numpy as np
+import pytest
+
+from sela_ros.core.fall_risk import FallRisk, safe_choice
+from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
+
+
+def _grid(n=21):
+    g = np.linspace(0.0, 1.0, n)
+    return np.array([[x, y] for x in g for y in g])
+
+
+def test_prior_is_trusted_until_a_fall_is_seen():
+    risk = FallRisk(_grid())
+    assert np.all(risk.risk() == 0.0)
+    risk.tell(0, False)
+    assert risk.risk().max() < 1e-6 and risk.falls == 0
+
+
+def test_one_fall_raises_the_risk_of_similar_gaits_only():
+    c = _grid()
+    risk = FallRisk(c, sigma=0.1)
+    fell = int(np.argmin(np.linalg.norm(c - [0.5, 0.5], axis=1)))
+    risk.tell(fell, True)
+    r = risk.risk()
+    near = np.linalg.norm(c - c[fell], axis=1)
+    assert r[fell] > 0.95
+    assert np.all(r[(near > 0) & (near < 0.06)] > 0.5)
+    assert np.all(r[near > 0.4] < 0.01)
+    # A gait that did not fall lowers the risk around it again.
+    other = int(np.argmin(np.linalg.norm(c - [0.55, 0.5], axis=1)))
+    before = r[other]
+    risk.tell(other, False)
+    assert risk.risk()[other] < before
+
+
+def test_prior_fall_rates_are_checked():
+    with pytest.raises(ValueError, match='shape'):
+        FallRisk(_grid(3), prior=np.zeros(2))
+    with pytest.raises(ValueError, match=r'\[0, 1\]'):
+        FallRisk(_grid(3), prior=np.full(9, 2.0))
+
+
+def test_safe_choice_rules_out_risky_gaits_and_keeps_the_least_risky_when_all_are():
+    scores = np.array([3.0, 2.0, 1.0])
+    assert np.argmax(safe_choice(scores, [0.9, 0.1, 0.0], 0.3)) == 1
+    masked = safe_choice(scores, [0.9, 0.8, 0.95], 0.3)
+    assert np.isneginf(masked[0]) and masked[1] == 2.0 and np.isneginf(masked[2])
+
+
+def _sela(threshold):
+    c = _grid()
+    # Every gait moves 0.3 m forward on the intact robot; the goal is straight ahead.
+    prior = np.tile([0.3, 0.0, 0.0], (len(c), 1))
+    prior[:, 0] += 0.1 * c[:, 0]  # the gaits with a large first descriptor go furthest
+    return SELA(c, prior, SE2Motion(), goal=(5.0, 0.0),
+                config=SELAConfig(planner_lookahead=0.5, fall_risk_threshold=threshold))
+
+
+def test_sela_stops_choosing_gaits_like_one_that_fell():
+    sela = _sela(0.3)
+    first = sela.ask(np.zeros(3))
+    assert first.fall_risk == 0.0
+    sela.tell_fall(first.index, True)
+    second = sela.ask(np.zeros(3))
+    c = _grid()
+    assert np.linalg.norm(c[second.index] - c[first.index]) > 0.1
+    assert second.fall_risk <= 0.3
+    # With the risk accepted at 1 the fall changes nothing (the GR GP learnt nothing).
+    blind = _sela(1.0)
+    index = blind.ask(np.zeros(3)).index
+    blind.tell_fall(index, True)
+    assert blind.ask(np.zeros(3)).index == index
+
+
+def test_falls_survive_a_restart_of_adaptation_and_a_state_round_trip():
+    sela = _sela(0.3)
+    sela.tell(3, [0.1, 0.0, 0.0])
+    sela.tell_fall(3, True)
+    sela.tell_fall(7, False)
+    sela.reset_learning()
+    assert sela.observations[0].size == 0 and sela.fall_risk.falls == 1
+    sela.tell(5, [0.2, 0.0, 0.0])
+    state = sela.state_dict()
+    assert state['fall_indices'] == [3, 7] and state['fallen'] == [True, False]
+    copy = _sela(0.3)
+    copy.load_state_dict(state)
+    np.testing.assert_allclose(copy.fall_risk.risk(), sela.fall_risk.risk())
+    np.testing.assert_allclose(copy.predict()[0], sela.predict()[0])
+    # A state saved before falls were learnt still loads.
+    del state['fall_indices'], state['fallen']
+    copy.load_state_dict(state)
+    assert copy.fall_risk.falls == 0
+    sela.forget_falls()
+    assert np.all(sela.fall_risk.risk() == 0.0)
