@@ -39,6 +39,8 @@ SCENARIOS = {
                     'sela_ros.experiments.toy'),
     'hexapod': Scenario('the damaged hexapod reaches (2, 2)',
                         'sela_ros.experiments.hexapod'),
+    'campaign': Scenario('the hexapod experiment over many damages, goals and maps '
+                         '(resumable; a table per damage)', 'sela_ros.experiments.campaign'),
 }
 
 
@@ -76,7 +78,8 @@ def main(argv=None) -> int:
 
     from tqdm import tqdm
 
-    with tqdm(total=args.replicates, desc=args.scenario, unit='replicate', file=sys.stderr,
+    total = getattr(module, 'progress_total', lambda a: a.replicates)(args)
+    with tqdm(total=total, desc=args.scenario, unit='replicate', file=sys.stderr,
               disable=args.quiet) as bar:
         doc = module.run(args, progress=lambda: bar.update(1))
     results_path = os.path.join(args.out, 'results.json')
@@ -87,7 +90,7 @@ def main(argv=None) -> int:
 
     from sela_ros.experiments.figures import plot_methods
 
-    plot_methods(doc, os.path.join(args.out, 'figure.png'))
+    getattr(module, 'plot', plot_methods)(doc, os.path.join(args.out, 'figure.png'))
     for name, s in doc.get('summary', {}).items():
         print(f'{name:16s} success {s["successes"]}/{doc["replicates"]}  median learning '
               f'{s["median_learning_iterations"]:g}  median steps {s["median_steps"]:g}')

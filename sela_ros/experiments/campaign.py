@@ -1,0 +1,195 @@
+"""``sela-experiment campaign``: the hexapod experiment over many damages, goals and maps.
+
+One command regenerates the damage-recovery tables::
+
+    sela-experiment campaign --replicates 20 --workers 2 --out docs/results/campaign \\
+        --archive sela_ros/data/hexapod_archive.npz --archive OTHER.npz \\
+        --damages 'single-legs;two-legs;shorten:front_left:0.5;block:rear_right.knee=0.3' \\
+        --goals 2,2 -2,1.5 1.5,-2
+
+Every (archive, damage, goal) cell is one run of :mod:`sela_ros.experiments.hexapod` (SELA,
+the IT&E baselines and the oracle, whose table is cached per damage), written to
+``OUT/<archive>/<damage>/<goal>/results.json`` as soon as it is done. A cell whose results
+are already there is not run again, so a campaign interrupted (or spread over several
+sessions) resumes where it stopped. At the end ``OUT/campaign.md`` holds a table per damage
+(success, median steps, ratio to the oracle's median on the same map, falls per run) and
+``OUT/figure.png`` SELA's steps per damage and map.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from sela_ros.experiments import arguments, hexapod
+
+LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right', 'rear_right')
+GROUPS = {
+    'single-legs': [f'remove:{leg}' for leg in LEGS],
+    'two-legs': ['remove:front_left,remove:rear_right', 'remove:middle_left,remove:middle_right'],
+}
+DEFAULT_DAMAGES = 'single-legs'
+DEFAULT_GOALS = ('2,2', '-2,1.5', '1.5,-2')
+
+
+def damage_list(text):
+    """Damages separated by ``;``: groups (``single-legs``, ``two-legs``) or specs of the
+    damage grammar, where a comma joins damages into one (``remove:front_left,remove:rear_right``
+    is ONE two-leg damage)."""
+    out = []
+    for item in [t.strip() for t in text.split(';') if t.strip()]:
+        if item in GROUPS:
+            out.extend(GROUPS[item])
+        else:
+            out.append(arguments.damage(item))
+    if not out:
+        raise argparse.ArgumentTypeError(f'no damage in {text!r}')
+    return out
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from sela_ros.core.archive import default_archive_path
+
+    parser.add_argument('--archive', action='append', type=hexapod._archive, default=None,
+                        help='a map to compare (repeat for several; default: the shipped one)')
+    parser.add_argument('--damages', type=damage_list, default=damage_list(DEFAULT_DAMAGES),
+                        help="';'-separated damage specs or groups: "
+                             f"{', '.join(GROUPS)} (default {DEFAULT_DAMAGES})")
+    parser.add_argument('--goals', type=arguments.goal, nargs='+',
+                        default=[arguments.goal(g) for g in DEFAULT_GOALS],
+                        help=f'goals X,Y (default: {" ".join(DEFAULT_GOALS)})')
+    parser.add_argument('--methods', type=arguments.method_list,
+                        default=list(hexapod.HEXAPOD_METHODS),
+                        help='comma-separated methods (default: %(default)s)')
+    parser.add_argument('--noise-std', type=arguments.non_negative_float,
+                        default=arguments.DEFAULT_NOISE_STD, help=arguments.NOISE_HELP)
+    parser.add_argument('--lookahead', type=arguments.positive_float,
+                        default=hexapod.DEFAULT_LOOKAHEAD, help='waypoint distance (m)')
+    parser.add_argument('--fall-risk', type=arguments.positive_float, default=None,
+                        help='fall.risk.threshold of SELA (default: its default)')
+    parser.add_argument('--max-steps', type=arguments.positive_int, default=100)
+    parser.add_argument('--oracle-cache', default=None,
+                        help='directory of cached oracle tables')
+    parser.set_defaults(default_archive=str(default_archive_path()))
+
+
+def progress_total(args) -> int:
+    return len(args.archive or [args.default_archive]) * len(args.damages) * len(args.goals)
+
+
+def _slug(text) -> str:
+    return ''.join(c if c.isalnum() or c in '.-' else '_' for c in str(text))
+
+
+def cell_dir(out, archive, damage, goal) -> Path:
+    goal_text = f'{goal[0]:g},{goal[1]:g}'
+    return Path(out) / _slug(Path(archive).stem) / _slug(damage) / _slug(goal_text)
+
+
+def run(args, progress=None) -> dict:
+    from sela_ros.core.sela import SELAConfig
+
+    archives = [os.path.abspath(a) for a in (args.archive or [args.default_archive])]
+    cells = []
+    for archive in archives:
+        for damage in args.damages:
+            for goal in args.goals:
+                where = cell_dir(args.out, archive, damage, goal)
+                path = where / 'results.json'
+                if not path.exists():
+                    cell_args = SimpleNamespace(
+                        archive=archive, damage=damage, goal=goal, noise_std=args.noise_std,
+                        lookahead=args.lookahead, kernel_sigma=SELAConfig().gp_kernel_sigma,
+                        alpha=SELAConfig().acquisition_ucb_alpha,
+                        fall_risk=args.fall_risk or SELAConfig().fall_risk_threshold,
+                        methods=args.methods, max_steps=args.max_steps,
+                        ite_iterations=hexapod.ITE_MAX_ITERATIONS,
+                        oracle_cache=args.oracle_cache, replicates=args.replicates,
+                        seed=args.seed, workers=args.workers)
+                    doc = hexapod.run(cell_args)
+                    where.mkdir(parents=True, exist_ok=True)
+                    tmp = path.with_suffix('.tmp')
+                    tmp.write_text(json.dumps(doc, indent=1))
+                    os.replace(tmp, path)
+                doc = json.loads(path.read_text())
+                cells.append({'archive': Path(archive).stem, 'damage': damage,
+                              'goal': list(goal), 'methods': doc['methods'],
+                              'replicates': doc['replicates']})
+                if progress:
+                    progress()
+    table = summarise(cells)
+    doc = {'scenario': 'campaign', 'replicates': args.replicates, 'seed': args.seed,
+           'cells': cells, 'table': table}
+    Path(args.out, 'campaign.md').write_text(markdown(table, args))
+    return doc
+
+
+def summarise(cells) -> list:
+    """One row per (damage, archive, method): pooled over goals, plus per-goal medians."""
+    rows = []
+    key = {}
+    for cell in cells:
+        oracle = cell['methods'].get('oracle')
+        oracle_median = float(np.median(oracle['steps'])) if oracle else None
+        for name, m in cell['methods'].items():
+            k = (cell['damage'], cell['archive'], name)
+            if k not in key:
+                key[k] = {'damage': k[0], 'archive': k[1], 'method': name, 'runs': 0,
+                          'successes': 0, 'steps': [], 'falls': [], 'ratios': []}
+                rows.append(key[k])
+            row = key[k]
+            row['runs'] += len(m['success'])
+            row['successes'] += int(sum(m['success']))
+            row['steps'].extend(int(s) + int(li) for s, li in
+                                zip(m['steps'], m['learning_iterations']))
+            row['falls'].extend(int(f) for f in m['falls'])
+            if oracle_median:
+                median = float(np.median(np.add(m['steps'], m['learning_iterations'])))
+                row['ratios'].append(median / oracle_median)
+    for row in rows:
+        row['median_steps'] = float(np.median(row['steps']))
+        row['median_falls'] = float(np.median(row['falls']))
+        row['worst_goal_ratio'] = max(row['ratios']) if row['ratios'] else None
+    return rows
+
+
+def markdown(table, args) -> str:
+    goals = ' '.join(f'({g[0]:g}, {g[1]:g})' for g in args.goals)
+    lines = [f'# Damage recovery campaign: {args.replicates} replicates per goal, goals {goals}',
+             '', 'Steps include IT&E learning trials. "worst ratio": the largest, over the '
+             "goals, of the method's median steps over the oracle's median on the same map. "
+             'Falls: per run (the robot is righted where it lies).', '']
+    for damage in dict.fromkeys(r['damage'] for r in table):
+        lines += [f'## {damage}', '',
+                  '| map | method | success | median steps | worst ratio | median falls/run '
+                  '| falls (all runs) |', '|---|---|---|---|---|---|---|']
+        for r in (r for r in table if r['damage'] == damage):
+            ratio = '-' if r['worst_goal_ratio'] is None else f'{r["worst_goal_ratio"]:.2f}x'
+            lines.append(f'| {r["archive"]} | {r["method"]} | {r["successes"]}/{r["runs"]} | '
+                         f'{r["median_steps"]:g} | {ratio} | {r["median_falls"]:g} | '
+                         f'{sum(r["falls"])} |')
+        lines.append('')
+    return '\n'.join(lines)
+
+
+def plot(doc, path) -> None:
+    """SELA's and the oracle's steps per damage, one box per map."""
+    from sela_ros.experiments.figures import plt
+
+    rows = [r for r in doc['table'] if r['method'] in ('sela', 'oracle')]
+    labels = [f'{r["damage"].replace("remove:", "-")}\n{r["archive"]}\n{r["method"]}'
+              for r in rows]
+    fig, ax = plt.subplots(figsize=(max(6.4, 0.55 * len(rows)), 4.2), dpi=100)
+    ax.boxplot([r['steps'] for r in rows], widths=0.6, flierprops={'markersize': 3})
+    ax.set_xticks(np.arange(1, len(rows) + 1))
+    ax.set_xticklabels(labels, fontsize=6, rotation=90)
+    ax.set_ylabel('steps to the goal')
+    ax.grid(axis='y', alpha=0.3)
+    ax.set_title(f'campaign: {doc["replicates"]} replicates per goal', fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
