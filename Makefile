@@ -28,7 +28,13 @@ $(VENV)/.deps: requirements.txt
 # The package itself: a real (non-editable) install, so that setup.py's data_files land in
 # $(VENV)/share exactly as colcon puts them in install/, then the executables are mirrored
 # into $(VENV)/lib/sela_ros where `ros2 run` looks.
-$(VENV)/.installed: $(VENV)/.deps $(PKG_SOURCES)
+# tf2_msgs (for /tf) is not among the PyPI wheels: generated from its .msg with the ROS
+# interface generators that are (requirements.txt); rebuilt only when the script changes.
+$(VENV)/.tf2_msgs: $(VENV)/.deps scripts/build_tf2_msgs.py
+	$(PY) scripts/build_tf2_msgs.py --prefix $(VENV)
+	@touch $@
+
+$(VENV)/.installed: $(VENV)/.deps $(VENV)/.tf2_msgs $(PKG_SOURCES)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation --force-reinstall .
 	$(PY) scripts/link_executables.py --prefix $(VENV)
 	@rm -rf build *.egg-info
