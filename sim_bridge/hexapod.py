@@ -20,10 +20,46 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as p
 
-from sim_bridge import controller
-from sim_bridge.damage import JOINT_LIMITS, JOINT_NAMES, LEG_NAMES, DamageSpec, parse_damage
+
+def _import_pybullet_quietly():
+    """Import pybullet without its C-level "pybullet build time: ..." banner.
+
+    A node's output is the user's terminal (and the demo's): the banner is noise. It is
+    written at import time (on stderr with this build); file descriptors 1 and 2 point at
+    /dev/null during the import, and libc's buffers are flushed before they are put back,
+    so it cannot come out later either. A failed import still raises, after the restore.
+    """
+    import ctypes
+    import sys
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        for fd in saved:
+            os.dup2(devnull, fd)
+        import pybullet
+        ctypes.CDLL(None).fflush(None)
+    finally:
+        for fd, copy in saved.items():
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(devnull)
+    return pybullet
+
+
+p = _import_pybullet_quietly()
+
+from sim_bridge import controller  # noqa: E402 - after the quiet import, on purpose
+from sim_bridge.damage import (  # noqa: E402
+    JOINT_LIMITS,
+    JOINT_NAMES,
+    LEG_NAMES,
+    DamageSpec,
+    parse_damage,
+)
 
 MODEL_VERSION = 'sela-hexapod-v1'
 CONTROLLER_VERSION = controller.CONTROLLER_VERSION

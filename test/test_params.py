@@ -7,6 +7,9 @@ from hypothesis import strategies as st
 from sela_ros.core.damage_detection import DetectorConfig
 from sela_ros.nodes.params import (
     STARTUP_ONLY,
+    Spec,
+    check,
+    coerce,
     first_problem,
     non_negative_int,
     non_negative_number,
@@ -16,7 +19,7 @@ from sela_ros.nodes.params import (
     string,
 )
 from sim_bridge.damage import LEG_NAMES
-from sim_bridge.node import PARAMETER_RULES, damage_rule
+from sim_bridge.node import PARAMETERS, damage_rule
 
 anything = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(),
                      st.lists(st.integers(), max_size=3))
@@ -70,8 +73,48 @@ def test_damage_rule(leg, junk):
         assert 'middle_right' in problem  # the valid names are listed
 
 
-def test_sim_bridge_start_up_parameters_are_refused_at_run_time():
-    assert first_problem([('sim.dt', 0.001)], PARAMETER_RULES).startswith('sim.dt can only')
+def test_sim_bridge_start_up_parameters_are_read_only():
+    read_only = {spec.name for spec in PARAMETERS if spec.read_only}
+    assert read_only == {'sim.dt', 'sim.gait_duration', 'sim.gui', 'seed', 'right_on_fall'}
+
+
+@given(anything, st.one_of(st.none(), st.floats(-10, 10)),
+       st.one_of(st.none(), st.floats(-10, 10)))
+def test_check_of_a_double_accepts_numbers_in_range_and_integers(value, low, high):
+    spec = Spec('x', 0.5, 'a number', low=low, high=high, unit=' m')
+    ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
+          and math.isfinite(value) and (low is None or value >= low)
+          and (high is None or value <= high))
+    problem = check(spec, value)
+    assert (problem is None) == ok
+    if not ok:
+        assert problem.startswith('must be a number') and problem.endswith(f'got {value!r}')
+    coerced = coerce(spec, value)
+    if ok:
+        assert isinstance(coerced, float) and coerced == value
+
+
+@given(anything)
+def test_check_of_an_integer_bool_string_and_array(value):
+    is_int = isinstance(value, int) and not isinstance(value, bool)
+    assert (check(Spec('n', 1, '', low=1, high=9), value) is None) == (is_int and 1 <= value <= 9)
+    assert (check(Spec('b', False, ''), value) is None) == isinstance(value, bool)
+    assert (check(Spec('s', 'odom', ''), value) is None) == isinstance(value, str)
+    is_list = isinstance(value, list) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        for v in value)
+    assert (check(Spec('a', [1.0], ''), value) is None) == is_list
+
+
+def test_check_runs_the_extra_rule_and_allows_not_set_only_without_default():
+    spec = Spec('obstacles', None, '', kind='double_array',
+                rule=lambda v: None if len(v) % 4 == 0 else 'must hold rectangles')
+    assert check(spec, None) is None
+    assert check(spec, [1, 2, 3]) == 'must hold rectangles'
+    assert coerce(spec, [1, 2, 3, 4]) == [1.0, 2.0, 3.0, 4.0]
+    assert check(Spec('x', 1.0, ''), None) == 'must be a number, got None'
+    assert Spec('seed', 0, '', low=0, high=2**31 - 1).constraints() == (
+        'an integer in [0, 2147483647]')
 
 
 @given(st.floats(allow_nan=True), st.integers(-3, 3), st.integers(-3, 3),

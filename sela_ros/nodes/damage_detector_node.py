@@ -17,24 +17,37 @@ from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes.heartbeat import SilenceWatch, add_heartbeat
 from sela_ros.nodes.node_main import run_node
-from sela_ros.nodes.params import first_problem, positive_number, startup_only
+from sela_ros.nodes.params import Spec, declare
 from sela_ros.nodes.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 
 STATUS_NAME = 'damage_detector: prediction error'
 ADAPT_TIMEOUT = 5.0
 
 
+def parameters(defaults):
+    """The detector's parameters; ``defaults`` is a :class:`DetectorConfig`."""
+    return (
+        Spec('detection.threshold', defaults.threshold, 'error between predicted and observed '
+             'displacement above which damage is detected', low=0.0, high=10.0, unit=' m'),
+        Spec('detection.yaw_weight', defaults.yaw_weight, 'heading error counted in the error',
+             low=0.0, high=10.0, unit=' m/rad'),
+        Spec('detection.window', defaults.window, 'outcomes averaged before deciding', low=1,
+             high=1000),
+        Spec('detection.cooldown', defaults.cooldown, 'outcomes after a detection before the '
+             'next one', low=0, high=1000),
+        Spec('detection.max_sigma', defaults.max_sigma, 'only predictions at most this unsure '
+             '(std) are judged', low=0.0, high=10.0, unit=' m'),
+        Spec('heartbeat.timeout', 5.0, 'wall time without a heartbeat before a node is reported '
+             'silent', low=0.1, high=3600.0, unit=' s'),
+        Spec('heartbeat.nodes', ['sim_bridge', 'planner', 'sela_adapter'],
+             'nodes whose heartbeat is watched', read_only=True),
+    )
+
+
 class DamageDetectorNode(Node):
     def __init__(self):
         super().__init__('damage_detector')
-        defaults = DetectorConfig()
-        self.declare_parameter('detection.threshold', defaults.threshold)
-        self.declare_parameter('detection.yaw_weight', defaults.yaw_weight)
-        self.declare_parameter('detection.window', defaults.window)
-        self.declare_parameter('detection.cooldown', defaults.cooldown)
-        self.declare_parameter('detection.max_sigma', defaults.max_sigma)
-        self.declare_parameter('heartbeat.timeout', 5.0)
-        self.declare_parameter('heartbeat.nodes', ['sim_bridge', 'planner', 'sela_adapter'])
+        values = declare(self, parameters(DetectorConfig()), on_change=self.parameters_callback)
         self.detector = DamageDetector(self._config_from({}))
         self.predictions = {}
         self.waiting = []  # verdicts waiting for the adapter's answer: (future, deadline, msg)
@@ -46,13 +59,11 @@ class DamageDetectorNode(Node):
         self.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
                                  self.outcome_callback, OUTCOME_QOS)
         self.adapt_client = self.create_client(Trigger, '/sela_adapter/adapt')
-        self.add_on_set_parameters_callback(self.parameters_callback)
         # Verdicts go out when the adapter answers (a done callback); this timer only
         # catches an adapter that does not answer within ADAPT_TIMEOUT.
         self.create_timer(0.25, self.flush_verdicts, clock=self.wall)
         # Watch the other nodes' heartbeats: a silent node is reported on /diagnostics.
-        self.watch = SilenceWatch(self.get_parameter('heartbeat.nodes').value,
-                                  self.get_parameter('heartbeat.timeout').value)
+        self.watch = SilenceWatch(values['heartbeat.nodes'], values['heartbeat.timeout'])
         self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback,
                                  STATE_QOS)
         self.create_timer(0.5, self.check_heartbeats, clock=self.wall)
@@ -87,11 +98,8 @@ class DamageDetectorNode(Node):
         return DetectorConfig(**values)
 
     def parameters_callback(self, params):
-        problem = first_problem(((p.name, p.value) for p in params),
-                                {'heartbeat.timeout': positive_number(' (s)'),
-                                 'heartbeat.nodes': startup_only})
-        if problem:
-            return SetParametersResult(successful=False, reason=problem)
+        # Called by params.declare with values its check accepted; the detector's own
+        # configuration check still applies to the combination.
         overrides = {p.name.split('.', 1)[1]: p.value for p in params
                      if p.name.startswith('detection.')}
         config = None

@@ -1,11 +1,12 @@
 """The one ``main()`` of every sela_ros node (Jazzy style: init, spin, clean shutdown)."""
+import signal
 import sys
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 
-from sela_ros.nodes.params import params_file_problems
+from sela_ros.nodes.params import StartupParameterError, params_file_problems
 
 #: Exit status of a node that refuses to start on a bad configuration (as argparse's).
 EXIT_BAD_CONFIGURATION = 2
@@ -32,14 +33,26 @@ def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
         print(f'[ERROR] [{node_class.__name__}]: not started: {exc}', file=sys.stderr)
         sys.exit(EXIT_BAD_CONFIGURATION)
     node = None
+    status = 0
     try:
         node = node_class()
         executor = executor_factory()
         executor.add_node(node)
         executor.spin()
+    except StartupParameterError as exc:
+        # One line, as for a refused `ros2 param set`: the same check said it.
+        name = exc.node_name or node_class.__name__
+        print(f'[ERROR] [{name}]: {exc} (not started)', file=sys.stderr)
+        status = EXIT_BAD_CONFIGURATION
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        # Ctrl-C in a terminal under `ros2 launch` reaches every node twice (the terminal's
+        # SIGINT to the process group, then launch's own): the second must not interrupt the
+        # clean-up below with a KeyboardInterrupt traceback. SIGTERM still ends a stuck node.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if status:
+        sys.exit(status)

@@ -1,9 +1,19 @@
-"""Validation of node parameters set at run time (ROS-free, property-tested).
+"""Node parameters: one declaration helper and one validator for start-up and run time.
 
-A node lists a rule per parameter; :func:`first_problem` checks a whole batch before any of
-it is applied, so a rejected ``ros2 param set`` changes nothing and says why.
+Every node lists its parameters as :class:`Spec` (default, description, range, read-only)
+and declares them with :func:`declare`. The same check (:func:`check`) judges a value given
+at start-up (``-p``, a params file) and one set at run time (``ros2 param set``), with the
+same message: a bad start-up value ends the node with that one line and exit status 2
+(:class:`StartupParameterError`, caught by ``node_main.run_node``), a bad run-time value is
+refused and nothing changes. ``ros2 param describe`` shows the description, the range and
+the read-only flag. An integer is accepted where a double is expected (``ros2 param set
+/planner planner.lookahead 1``) and stored as a double.
+
+The checks are ROS-free (property-tested); only :func:`declare` touches rclpy.
 """
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 STARTUP_ONLY = 'can only be set at start-up (restart the node with the new value)'
 
@@ -46,6 +56,201 @@ def string(value):
 
 def startup_only(value):
     return STARTUP_ONLY
+
+
+class StartupParameterError(Exception):
+    """A start-up parameter the node refuses: ``str()`` is the one line to print."""
+
+    def __init__(self, message, node_name=None):
+        super().__init__(message)
+        self.node_name = node_name
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One parameter of a node.
+
+    Attributes:
+        name: the parameter's name (``planner.lookahead``).
+        default: its value when none is given; ``None`` for "not set" (then ``kind``).
+        description: what it does, for ``ros2 param describe``.
+        low, high: inclusive bounds of a number (either may be None: unbounded).
+        unit: appended to messages and the description (``' m'``).
+        read_only: only given at start-up (``ros2 param set`` is refused).
+        rule: an extra check ``value -> problem or None`` after type and range.
+        kind: ``double``, ``integer``, ``bool``, ``string``, ``double_array``,
+            ``integer_array`` or ``string_array``; inferred from ``default`` when None.
+    """
+    name: str
+    default: object
+    description: str
+    low: float | None = None
+    high: float | None = None
+    unit: str = ''
+    read_only: bool = False
+    rule: Callable | None = None
+    kind: str | None = None
+
+    @property
+    def type(self):
+        if self.kind:
+            return self.kind
+        value = self.default
+        if isinstance(value, bool):
+            return 'bool'
+        if isinstance(value, int):
+            return 'integer'
+        if isinstance(value, float):
+            return 'double'
+        if isinstance(value, str):
+            return 'string'
+        if isinstance(value, (list, tuple)) and value:
+            item = Spec(self.name, value[0], '').type
+            return f'{item}_array'
+        raise ValueError(f'parameter {self.name}: give kind= for default {value!r}')
+
+    def constraints(self):
+        """The accepted values in words (``a number in [0.05, 5] m``)."""
+        base = {'double': 'a number', 'integer': 'an integer', 'bool': 'true or false',
+                'string': 'a string', 'double_array': 'a list of numbers',
+                'integer_array': 'a list of integers', 'string_array': 'a list of strings'}
+        text = base[self.type]
+        low, high = (f'{v:g}' if isinstance(v, float) else str(v) for v in (self.low, self.high))
+        if self.low is not None and self.high is not None:
+            text += f' in [{low}, {high}]'
+        elif self.low is not None:
+            text += f' >= {low}'
+        elif self.high is not None:
+            text += f' <= {high}'
+        return text + self.unit
+
+
+def _is_int(value):
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_sequence(value):
+    return not isinstance(value, (str, bytes, dict)) and hasattr(value, '__len__')
+
+
+def _fits(spec, value):
+    kind = spec.type
+    if kind == 'bool':
+        return isinstance(value, bool)
+    if kind == 'string':
+        return isinstance(value, str)
+    if kind.endswith('_array'):
+        item = Spec(spec.name, None, '', kind=kind[:-len('_array')])
+        return _is_sequence(value) and all(_fits(item, v) for v in value)
+    if not (_is_int(value) if kind == 'integer' else _is_number(value)):
+        return False
+    if not math.isfinite(value):
+        return False
+    return ((spec.low is None or value >= spec.low)
+            and (spec.high is None or value <= spec.high))
+
+
+def check(spec, value):
+    """What is wrong with ``value`` for ``spec`` (``'must be ..., got ...'``), or None.
+
+    ``None`` (not set) is accepted only for a parameter whose default is not set. An integer
+    is a number; a bool is not.
+    """
+    if value is None and spec.default is None:
+        return None
+    if not _fits(spec, value):
+        return f'must be {spec.constraints()}, got {value!r}'
+    return spec.rule(value) if spec.rule is not None else None
+
+
+def coerce(spec, value):
+    """``value`` in the spec's type where it is an integer given for a double."""
+    if spec.type == 'double' and _is_int(value):
+        return float(value)
+    if spec.type == 'double_array' and _is_sequence(value) and all(_is_int(v) for v in value):
+        return [float(v) for v in value]
+    return value
+
+
+def declare(node, specs, on_change=None):
+    """Declare ``specs`` on ``node`` with descriptors; validate now and on every set.
+
+    Args:
+        node: an ``rclpy.node.Node`` (before anything else reads its parameters).
+        specs: iterable of :class:`Spec`.
+        on_change: ``callback(params) -> SetParametersResult or None``, called with a batch
+            that passed :func:`check` (never during declaration): the node applies it, or
+            refuses it for reasons that need its state.
+
+    Returns:
+        ``{name: value}``, the values in effect (integers given for doubles as floats).
+
+    Raises:
+        StartupParameterError: a value given at start-up fails :func:`check` (or a range).
+    """
+    from rcl_interfaces.msg import (
+        FloatingPointRange,
+        IntegerRange,
+        ParameterDescriptor,
+        SetParametersResult,
+    )
+    from rclpy.exceptions import ParameterException
+    from rclpy.parameter import Parameter
+
+    specs = {spec.name: spec for spec in specs}
+    declaring = [True]
+
+    def coerce_batch(params):
+        return [Parameter(p.name, value=coerce(specs[p.name], p.value))
+                if p.name in specs and coerce(specs[p.name], p.value) is not p.value else p
+                for p in params]
+
+    def validate(params):
+        for param in params:
+            spec = specs.get(param.name)
+            problem = check(spec, param.value) if spec is not None else None
+            if problem:
+                return SetParametersResult(successful=False, reason=f'{param.name} {problem}')
+        if on_change is not None and not declaring[0]:
+            result = on_change(params)
+            if result is not None:
+                return result
+        return SetParametersResult(successful=True)
+
+    # Values given at start-up are coerced the way a run-time set is (pre-set callback).
+    overrides = getattr(node, '_parameter_overrides', None)
+    if isinstance(overrides, dict):
+        for name, param in list(overrides.items()):
+            if name in specs:
+                overrides[name] = coerce_batch([param])[0]
+    node.add_pre_set_parameters_callback(coerce_batch)
+    node.add_on_set_parameters_callback(validate)
+    declared = []
+    for spec in specs.values():
+        descriptor = ParameterDescriptor(
+            description=spec.description,
+            additional_constraints=spec.constraints(), read_only=spec.read_only,
+            dynamic_typing=True)
+        if spec.type == 'double' and spec.low is not None and spec.high is not None:
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+        if spec.type == 'integer' and spec.low is not None and spec.high is not None:
+            descriptor.integer_range = [IntegerRange(
+                from_value=int(spec.low), to_value=int(spec.high), step=1)]
+        declared.append((spec.name, spec.default, descriptor))
+    try:
+        for name, default, descriptor in declared:
+            try:
+                node.declare_parameter(name, default, descriptor)
+            except ParameterException as exc:
+                # rclpy refused it through the same descriptor and callback as a run-time
+                # set: the reason is the message `ros2 param set` would print.
+                reason = str(exc).split('Reason: ', 1)[-1].removesuffix(f': {name}')
+                raise StartupParameterError(reason, node.get_name()) from None
+    finally:
+        declaring[0] = False
+    values = {name: node.get_parameter_or(name) for name in specs}
+    return {name: None if param is None else param.value for name, param in values.items()}
 
 
 def first_problem(changes, rules):

@@ -17,15 +17,13 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry, Path
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 from sela_ros.core.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
-from sela_ros.nodes.params import first_problem, non_negative_number, positive_number, startup_only
+from sela_ros.nodes.params import Spec, declare
 from sela_ros.nodes.qos import LATCHED_QOS, STATE_QOS
 
 
@@ -77,34 +75,47 @@ def load_map_file(path):
                                  data['height'], data.get('obstacles', []))
 
 
-PARAMETER_RULES = {'planner.lookahead': positive_number(' (m)'), 'frame_id': startup_only,
-                   'planner.inflation': non_negative_number(' (m)')}
+def _origin_rule(value):
+    return None if len(value) == 2 else f'must be [x, y], got {list(value)}'
+
+
+def _obstacles_rule(value):
+    return None if len(value) % 4 == 0 else (
+        'must be a flat list of rectangles [xmin, ymin, xmax, ymax, ...]; '
+        f'got {len(value)} numbers')
+
+
+PARAMETERS = (
+    Spec('map.resolution', 0.05, 'size of a grid cell', low=0.001, high=1.0, unit=' m',
+         read_only=True),
+    Spec('map.origin', [-1.0, -1.0], 'lower-left corner [x, y] of the grid in odom (m)',
+         rule=_origin_rule, read_only=True),
+    Spec('map.width', 4.0, 'width of the grid', low=0.01, high=1000.0, unit=' m',
+         read_only=True),
+    Spec('map.height', 4.0, 'height of the grid', low=0.01, high=1000.0, unit=' m',
+         read_only=True),
+    # Not set by default: ROS cannot hold an empty typed array in YAML.
+    Spec('map.obstacles', None, 'rectangles [xmin, ymin, xmax, ymax, ...] in m',
+         kind='double_array', rule=_obstacles_rule, read_only=True),
+    Spec('map.file', '', "a map YAML (resolution, origin, width, height, obstacles); '' = the "
+         'map.* parameters', read_only=True),
+    Spec('planner.lookahead', 0.6, 'distance along the path to the waypoint of the reward',
+         low=0.01, high=100.0, unit=' m'),
+    Spec('planner.inflation', 0.25, 'clearance kept from obstacles', low=0.0, high=10.0,
+         unit=' m'),
+    Spec('frame_id', 'odom', 'frame of goals, paths and waypoints', read_only=True),
+)
 
 
 class PlannerNode(Node):
     def __init__(self):
         super().__init__('planner')
-        self.declare_parameter('map.resolution', 0.05)
-        self.declare_parameter('map.origin', [-1.0, -1.0])
-        self.declare_parameter('map.width', 4.0)
-        self.declare_parameter('map.height', 4.0)
-        # A typed empty default: ROS cannot infer the type of [], so declare DOUBLE_ARRAY.
-        self.declare_parameter('map.obstacles', Parameter.Type.DOUBLE_ARRAY)
-        self.declare_parameter('map.file', '')
-        self.declare_parameter('planner.lookahead', 0.6)
-        self.declare_parameter('planner.inflation', 0.25)
-        self.declare_parameter('frame_id', 'odom')
-
-        self.frame_id = self.get_parameter('frame_id').value
-        self.lookahead = float(self.get_parameter('planner.lookahead').value)
+        values = declare(self, PARAMETERS, on_change=self.parameters_callback)
+        self.frame_id = values['frame_id']
+        self.lookahead = values['planner.lookahead']
         self.map_error = None
         self.grid = self._load_grid()
-        inflation = self.get_parameter('planner.inflation').value
-        problem = first_problem([('planner.inflation', inflation)], PARAMETER_RULES)
-        if problem:
-            self.get_logger().error(f'{problem}; planning without inflation')
-            inflation = 0.0
-        self.planner = GridPlanner(self.grid, inflation=float(inflation))
+        self.planner = GridPlanner(self.grid, inflation=values['planner.inflation'])
         self.pose = None
         self.goal = None
 
@@ -115,7 +126,6 @@ class PlannerNode(Node):
         self.create_subscription(Odometry, '/hexapod/odom', self.odom_callback, STATE_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self.goal_callback, LATCHED_QOS)
         self.create_service(GetPlan, '/planner/make_plan', self.make_plan_callback)
-        self.add_on_set_parameters_callback(self.parameters_callback)
         add_heartbeat(self)
         self.map_pub.publish(conv.occupancy_grid_to_msg(
             self.grid.occupied, self.grid.resolution, self.grid.origin, frame_id=self.frame_id))
@@ -141,17 +151,11 @@ class PlannerNode(Node):
             self._obstacles())
 
     def _obstacles(self):
-        try:
-            return list(self.get_parameter('map.obstacles').value)
-        except ParameterUninitializedException:
-            return []  # no obstacles given: ROS cannot hold an empty typed array in YAML
+        # Not set (None) when none are given: ROS cannot hold an empty typed array in YAML.
+        return list(self.get_parameter('map.obstacles').value or [])
 
     def parameters_callback(self, params):
-        rules = dict(PARAMETER_RULES)
-        rules.update({p.name: startup_only for p in params if p.name.startswith('map.')})
-        problem = first_problem(((p.name, p.value) for p in params), rules)
-        if problem:
-            return SetParametersResult(successful=False, reason=problem)
+        # Called by params.declare with values its check accepted (map.* are read-only).
         for param in params:
             if param.name == 'planner.lookahead':
                 self.lookahead = float(param.value)
