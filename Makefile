@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 PKG_SOURCES := $(shell find sela_ros sim_bridge -name '*.py' -o -name '*.urdf' -o -name '*.npz' 2>/dev/null) \
-	setup.py setup.cfg package.xml resource/sela_ros $(wildcard config/*.yaml launch/*.py)
+	setup.py setup.cfg package.xml resource/sela_ros $(wildcard config/*.yaml launch/*.py rviz/*.rviz)
 
 # DDS stays on loopback; the venv is the ament prefix that `ros2 run`-style lookups use.
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST

@@ -28,6 +28,9 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
         ('share/' + package_name + '/launch', sorted(glob('launch/*.py'))),
+        ('share/' + package_name + '/rviz', sorted(glob('rviz/*.rviz'))),
+        # The intact model (robot_state_publisher's); the simulator publishes the damaged one.
+        ('share/' + package_name + '/urdf', sorted(glob('sim_bridge/urdf/*.urdf'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

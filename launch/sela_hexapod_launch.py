@@ -1,24 +1,38 @@
-"""Start the four sela_ros nodes with config/sela.yaml.
+"""Start the four sela_ros nodes with config/sela.yaml, robot_state_publisher and maybe RViz.
 
-Usage: ``ros2 launch sela_ros sela_hexapod_launch.py [damage:=...] [seed:=...]``.
+Usage: ``ros2 launch sela_ros sela_hexapod_launch.py [damage:=...] [seed:=...]
+[namespace:=/robot1] [rviz:=true]``.
 
 Arguments: damage (default remove:middle_right), seed (0), gui (false), params_file (the
-installed config/sela.yaml), archive ('' = the shipped archive). Send the goal with e.g.
-``ros2 topic pub --once -w 1 --qos-durability transient_local /goal_pose
-geometry_msgs/msg/PoseStamped "{header: {frame_id: odom}, pose: {position: {x: 2.0, y: 2.0}}}"``.
+installed config/sela.yaml), archive ('' = the shipped archive), namespace ('' = the root:
+every node, topic and service of the stack goes under it, so two robots can share a domain),
+rviz (false; true opens RViz with share/sela_ros/rviz/sela.rviz). The goal command is in
+the README ("Send a goal").
+
+/tf and /tf_static are remapped to the namespace's ``tf``/``tf_static`` for
+robot_state_publisher and RViz (as nav2 does), so each robot has its own tree. The
+simulator publishes ``robot_description`` with the current damage (a removed leg is
+absent); robot_state_publisher gets the intact model from share/sela_ros/urdf/ for the legs'
+transforms, and its own copy of the description is moved aside so that it does not replace
+the simulator's.
 """
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, GroupAction
+from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
+from launch_ros.actions import Node, PushRosNamespace
+
+TF_REMAPS = [('/tf', 'tf'), ('/tf_static', 'tf_static')]
 
 
 def generate_launch_description():
-    default_params = os.path.join(get_package_share_directory('sela_ros'), 'config',
-                                  'sela.yaml')
+    share = get_package_share_directory('sela_ros')
+    default_params = os.path.join(share, 'config', 'sela.yaml')
+    with open(os.path.join(share, 'urdf', 'hexapod.urdf')) as handle:
+        urdf = handle.read()
     params = LaunchConfiguration('params_file')
     arguments = [
         DeclareLaunchArgument('params_file', default_value=default_params,
@@ -29,6 +43,12 @@ def generate_launch_description():
         DeclareLaunchArgument('gui', default_value='false', description="PyBullet's window"),
         DeclareLaunchArgument('archive', default_value='',
                               description="archive file ('' = the shipped one)"),
+        DeclareLaunchArgument('namespace', default_value='',
+                              description="namespace of the whole stack, e.g. /robot1 "
+                                          "('' = the root)"),
+        DeclareLaunchArgument('rviz', default_value='false',
+                              description='true: open RViz on the robot, the path and '
+                                          "SELA's markers"),
     ]
     nodes = [
         Node(package='sela_ros', executable='sim_bridge', name='sim_bridge', output='screen',
@@ -42,5 +62,16 @@ def generate_launch_description():
         Node(package='sela_ros', executable='sela_adapter', name='sela_adapter',
              output='screen',
              parameters=[params, {'archive': LaunchConfiguration('archive')}]),
+        Node(package='robot_state_publisher', executable='robot_state_publisher',
+             name='robot_state_publisher', output='screen',
+             parameters=[{'robot_description': urdf, 'use_sim_time': True}],
+             remappings=TF_REMAPS + [
+                 ('joint_states', 'hexapod/joint_states'),
+                 ('robot_description', 'robot_state_publisher/robot_description')]),
+        Node(package='rviz2', executable='rviz2', name='rviz2', output='screen',
+             arguments=['-d', os.path.join(share, 'rviz', 'sela.rviz')],
+             parameters=[{'use_sim_time': True}], remappings=TF_REMAPS,
+             condition=IfCondition(LaunchConfiguration('rviz'))),
     ]
-    return LaunchDescription(arguments + nodes)
+    stack = GroupAction([PushRosNamespace(LaunchConfiguration('namespace'))] + nodes)
+    return LaunchDescription(arguments + [stack])

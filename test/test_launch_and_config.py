@@ -22,9 +22,11 @@ class _Recorder:
 
 @pytest.fixture
 def launch_description(monkeypatch):
-    fakes = {'launch': ['LaunchDescription'], 'launch.actions': ['DeclareLaunchArgument'],
+    fakes = {'launch': ['LaunchDescription'],
+             'launch.actions': ['DeclareLaunchArgument', 'GroupAction'],
+             'launch.conditions': ['IfCondition'],
              'launch.substitutions': ['LaunchConfiguration'], 'launch_ros': [],
-             'launch_ros.actions': ['Node']}
+             'launch_ros.actions': ['Node', 'PushRosNamespace']}
     for name, classes in fakes.items():
         module = types.ModuleType(name)
         for cls in classes:
@@ -37,17 +39,64 @@ def launch_description(monkeypatch):
     return module.generate_launch_description()
 
 
+def _nodes(launch_description):
+    """The Node actions, wherever the launch file groups them."""
+    found, todo = [], list(launch_description.args[0])
+    while todo:
+        action = todo.pop(0)
+        if type(action).__name__ == 'Node':
+            found.append(action)
+        elif type(action).__name__ == 'GroupAction':
+            todo.extend(action.args[0])
+    return found
+
+
 def test_launch_starts_the_four_nodes_with_the_config(launch_description):
     actions = launch_description.args[0]
-    nodes = [a for a in actions if type(a).__name__ == 'Node']
+    nodes = [n for n in _nodes(launch_description) if n.kwargs['package'] == 'sela_ros']
     assert sorted(n.kwargs['executable'] for n in nodes) == sorted(NODES)
-    assert all(n.kwargs['package'] == 'sela_ros' for n in nodes)
     assert all(n.kwargs['name'] == n.kwargs['executable'] for n in nodes)
     declared = {a.args[0]: a.kwargs['default_value'] for a in actions
                 if type(a).__name__ == 'DeclareLaunchArgument'}
     assert declared['params_file'].endswith('share/sela_ros/config/sela.yaml')
     assert Path(declared['params_file']).is_file()
     assert declared['damage'] == 'remove:middle_right'
+    assert declared['namespace'] == '' and declared['rviz'] == 'false'
+
+
+def test_namespace_is_pushed_on_every_node(launch_description):
+    (group,) = [a for a in launch_description.args[0] if type(a).__name__ == 'GroupAction']
+    push, *inside = group.args[0]
+    assert type(push).__name__ == 'PushRosNamespace'
+    assert push.args[0].args[0] == 'namespace'
+    assert {id(n) for n in inside} == {id(n) for n in _nodes(launch_description)}
+
+
+def test_robot_state_publisher_and_optional_rviz_use_installed_files(launch_description):
+    by_package = {n.kwargs['package']: n for n in _nodes(launch_description)}
+    rsp = by_package['robot_state_publisher']
+    urdf = rsp.kwargs['parameters'][0]['robot_description']
+    assert '<robot name="sela_hexapod">' in urdf and 'middle_right' in urdf  # intact model
+    remaps = dict(rsp.kwargs['remappings'])
+    assert remaps['/tf'] == 'tf' and remaps['joint_states'] == 'hexapod/joint_states'
+    assert remaps['robot_description'] != 'robot_description'  # the simulator's is the one
+    rviz = by_package['rviz2']
+    assert rviz.kwargs['condition'].args[0].args[0] == 'rviz'
+    config = Path(rviz.kwargs['arguments'][1])
+    assert config.parent.name == 'rviz' and config.is_file(), config
+    assert dict(rviz.kwargs['remappings'])['/tf'] == 'tf'
+
+
+def test_rviz_config_shows_the_robot_and_sets_goals_on_goal_pose():
+    config = yaml.safe_load((ROOT / 'rviz' / 'sela.rviz').read_text())
+    manager = config['Visualization Manager']
+    assert manager['Global Options']['Fixed Frame'] == 'odom'
+    displays = {d['Class'].split('/')[-1]: d for d in manager['Displays']}
+    assert {'RobotModel', 'TF', 'Path', 'MarkerArray'} <= set(displays)
+    assert displays['RobotModel']['Description Topic']['Value'] == 'robot_description'
+    (goal_tool,) = [t for t in manager['Tools'] if t['Class'].endswith('/SetGoal')]
+    assert goal_tool['Topic']['Value'] == 'goal_pose'  # relative: follows namespace:=
+    assert goal_tool['Topic']['Durability Policy'] == 'Volatile'
 
 
 def test_config_is_keyed_by_node_name_with_ros_parameters():

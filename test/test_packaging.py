@@ -54,9 +54,12 @@ def test_data_files_are_installed_under_share(prefix):
     share = Path(get_package_share_directory('sela_ros'))
     assert share == prefix / 'share' / 'sela_ros'
     assert (share / 'package.xml').is_file()
-    for sub in ('config', 'launch'):
-        for src in sorted((ROOT / sub).glob('*.yaml' if sub == 'config' else '*.py')):
+    for sub, pattern in (('config', '*.yaml'), ('launch', '*.py'), ('rviz', '*.rviz')):
+        sources = sorted((ROOT / sub).glob(pattern))
+        assert sources, f'nothing in {sub}/'
+        for src in sources:
             assert (share / sub / src.name).is_file(), f'{sub}/{src.name} not installed'
+    assert (share / 'urdf' / 'hexapod.urdf').is_file(), 'the URDF is not under share/urdf'
 
 
 def test_package_xml_declares_runtime_dependencies():
@@ -64,7 +67,8 @@ def test_package_xml_declares_runtime_dependencies():
     assert tree.getroot().get('format') == '3'
     deps = {e.text for e in tree.getroot() if e.tag in ('exec_depend', 'depend')}
     for dep in ('rclpy', 'std_msgs', 'geometry_msgs', 'nav_msgs', 'sensor_msgs', 'std_srvs',
-                'diagnostic_msgs', 'rosgraph_msgs', 'python3-numpy', 'python3-scipy'):
+                'diagnostic_msgs', 'rosgraph_msgs', 'tf2_msgs', 'visualization_msgs',
+                'robot_state_publisher', 'rviz2', 'python3-numpy', 'python3-scipy'):
         assert dep in deps, dep
     assert any('pybullet' in d for d in deps)
     assert tree.find('export/build_type').text == 'ament_python'

@@ -12,6 +12,14 @@ from sela_ros.nodes.params import StartupParameterError, params_file_problems
 EXIT_BAD_CONFIGURATION = 2
 
 
+def _first_interrupt_only(signum, frame):
+    """Ctrl-C in a terminal under `ros2 launch` reaches every node twice (the terminal's
+    SIGINT to the process group, then launch's own): the second must not interrupt the
+    clean shutdown with a KeyboardInterrupt traceback. SIGTERM still ends a stuck node."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    raise KeyboardInterrupt
+
+
 def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
     """Create ``node_class()`` and spin it until Ctrl-C or an external shutdown.
 
@@ -27,6 +35,9 @@ def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
         print(f'[ERROR] [{node_class.__name__}]: not started: fix the parameters file',
               file=sys.stderr)
         sys.exit(EXIT_BAD_CONFIGURATION)
+    # Installed before rclpy.init so that rclpy's handler (which wakes the executor) chains
+    # to it: the first Ctrl-C ends the spin, any later one is ignored at once.
+    signal.signal(signal.SIGINT, _first_interrupt_only)
     try:
         rclpy.init(args=args)
     except rclpy_implementation.RCLError as exc:
@@ -47,10 +58,7 @@ def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        # Ctrl-C in a terminal under `ros2 launch` reaches every node twice (the terminal's
-        # SIGINT to the process group, then launch's own): the second must not interrupt the
-        # clean-up below with a KeyboardInterrupt traceback. SIGTERM still ends a stuck node.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # also after an external shutdown
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -1,0 +1,154 @@
+"""What a ROS user does, over DDS: see the robot (/tf, /robot_description), inspect and set
+parameters, start with a bad one, stop the stack with Ctrl-C (issue #12)."""
+import os
+import signal
+import subprocess
+import time
+
+import pytest
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters
+from std_msgs.msg import String
+
+from sela_ros.nodes.qos import LATCHED_QOS
+from sela_ros.tools.ros_env import executable
+
+from ros_graph import Client, NodeProcesses
+
+pytestmark = [pytest.mark.dds]
+
+
+@pytest.fixture
+def client():
+    c = Client('ros_user_test')
+    yield c
+    c.close()
+
+
+def _set(client, node, name, value_msg):
+    cli = client.node.create_client(SetParameters, f'/{node}/set_parameters')
+    request = SetParameters.Request(parameters=[Parameter(name=name, value=value_msg)])
+    return client.call(cli, request).results[0]
+
+
+def test_sim_publishes_tf_and_the_damaged_robot_description(client):
+    from tf2_msgs.msg import TFMessage  # generated into .venv by make venv
+
+    nodes = NodeProcesses({'sim_bridge': {'damage': 'remove:middle_right'}},
+                          names=('sim_bridge',))
+    try:
+        transforms, descriptions = [], []
+        client.node.create_subscription(TFMessage, '/tf',
+                                        lambda m: transforms.extend(m.transforms), 10)
+        client.node.create_subscription(String, '/robot_description',
+                                        lambda m: descriptions.append(m.data), LATCHED_QOS)
+        client.spin_until(lambda: transforms and descriptions, 60, '/tf and /robot_description')
+        tf = transforms[-1]
+        assert (tf.header.frame_id, tf.child_frame_id) == ('odom', 'base_link')
+        assert 0.05 < tf.transform.translation.z < 0.5  # the body stands above the ground
+        urdf = descriptions[-1]
+        assert '<robot name="sela_hexapod">' in urdf and 'damage: remove:middle_right' in urdf
+        assert 'middle_right.coxa' not in urdf and 'middle_left.coxa' in urdf
+        # The description follows the damage at run time.
+        value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='intact')
+        assert _set(client, 'sim_bridge', 'damage', value).successful
+        client.spin_until(lambda: 'damage: intact' in descriptions[-1], 30,
+                          'the intact description')
+        assert 'middle_right.coxa' in descriptions[-1]
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        nodes.stop()
+
+
+def test_parameters_are_described_and_take_an_integer_for_a_double(client):
+    nodes = NodeProcesses(names=('planner',))
+    try:
+        describe = client.node.create_client(DescribeParameters, '/planner/describe_parameters')
+        answer = client.call(describe, DescribeParameters.Request(
+            names=['planner.lookahead', 'map.resolution']))
+        lookahead, resolution = answer.descriptors
+        assert 'waypoint' in lookahead.description
+        (span,) = lookahead.floating_point_range
+        assert span.from_value > 0 and span.to_value >= 5.0
+        assert not lookahead.read_only and resolution.read_only
+        # `ros2 param set /planner planner.lookahead 1`: an integer, stored as a double.
+        one = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=1)
+        assert _set(client, 'planner', 'planner.lookahead', one).successful
+        get = client.node.create_client(GetParameters, '/planner/get_parameters')
+        (value,) = client.call(get, GetParameters.Request(names=['planner.lookahead'])).values
+        assert value.type == ParameterType.PARAMETER_DOUBLE and value.double_value == 1.0
+        text = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='abc')
+        result = _set(client, 'planner', 'planner.lookahead', text)
+        assert not result.successful
+        assert result.reason == "planner.lookahead must be a number in [0.01, 100] m, got 'abc'"
+        result = _set(client, 'planner', 'map.resolution',
+                      ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.1))
+        assert not result.successful and 'read-only' in result.reason
+    finally:
+        nodes.stop()
+
+
+@pytest.mark.parametrize('node, args, message', [
+    ('sim_bridge', ['-p', 'seed:=abc'],
+     "[ERROR] [sim_bridge]: seed must be an integer in [0, 2147483647], got 'abc' "
+     '(not started)'),
+    ('planner', ['-p', 'planner.lookahead:=abc'],
+     "[ERROR] [planner]: planner.lookahead must be a number in [0.01, 100] m, got 'abc' "
+     '(not started)'),
+    ('damage_detector', ['-p', 'detection.window:=0'],
+     '[ERROR] [damage_detector]: Parameter detection.window out of range. Min: 1, Max: 1000, '
+     'value: 0 (not started)'),
+])
+def test_a_bad_start_up_parameter_ends_the_node_with_one_line(ros_env, node, args, message):
+    proc = subprocess.run([str(executable(node)), '--ros-args'] + args, env=ros_env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.strip().splitlines() == [message]
+    assert proc.stdout == ''
+
+
+def test_an_integer_for_a_double_at_start_up_is_taken(ros_env, client):
+    nodes = NodeProcesses({'planner': {'planner.lookahead': 1}}, names=('planner',))
+    try:
+        get = client.node.create_client(GetParameters, '/planner/get_parameters')
+        (value,) = client.call(get, GetParameters.Request(names=['planner.lookahead']),
+                               timeout=60).values
+        assert value.type == ParameterType.PARAMETER_DOUBLE and value.double_value == 1.0
+    finally:
+        nodes.stop()
+
+
+def test_ctrl_c_under_a_launch_like_process_group_exits_cleanly(ros_env, client):
+    """A terminal's Ctrl-C reaches the whole process group, then `ros2 launch` sends its own
+    SIGINT to each node: every node exits 0, with no traceback and nothing on stdout."""
+    names = ('sim_bridge', 'planner', 'damage_detector')
+    procs = {}
+    for name in names:
+        procs[name] = subprocess.Popen(
+            [str(executable(name))], env=ros_env, stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True,
+            process_group=procs['sim_bridge'].pid if procs else 0)
+    try:
+        for name in names:  # up: its parameter services answer
+            cli = client.node.create_client(GetParameters, f'/{name}/get_parameters')
+            client.call(cli, GetParameters.Request(names=['use_sim_time']), timeout=90)
+        group = procs['sim_bridge'].pid
+        deadline = time.monotonic() + 30
+        # Ctrl-C, then launch's SIGINTs, repeated until every node is gone (bounded).
+        while any(p.poll() is None for p in procs.values()) and time.monotonic() < deadline:
+            os.killpg(group, signal.SIGINT)
+            for proc in procs.values():
+                if proc.poll() is None:
+                    proc.send_signal(signal.SIGINT)
+            client.executor.spin_once(timeout_sec=0.05)  # paces the signals
+    finally:
+        outputs = {}
+        for name, proc in procs.items():
+            if proc.poll() is None:
+                proc.kill()
+            out, err = proc.communicate(timeout=30)
+            outputs[name] = (proc.returncode, out, err)
+    for name, (status, out, err) in outputs.items():
+        assert status == 0, (name, status, err[-2000:])
+        assert 'Traceback' not in err and 'KeyboardInterrupt' not in err, (name, err)
+        assert 'pybullet build time' not in out + err, name
