@@ -29,11 +29,8 @@ from sela_ros.tools.ros_env import ensure_ros_environment  # noqa: E402
 
 ensure_ros_environment()
 
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-
-from sela_ros import conversions as conv  # noqa: E402
-from sela_ros.nodes.adapter_node import MISSION_STATUS  # noqa: E402
-from sela_ros.nodes.qos import LATCHED_QOS, STATE_QOS  # noqa: E402
+from sela_ros.nodes import interface as ifc  # noqa: E402
+from sela_ros.tools.mission_client import MissionClient  # noqa: E402
 
 from ros_graph import CONFIG, Client, NodeProcesses  # noqa: E402
 
@@ -46,8 +43,7 @@ def rss_mb(pid):
     return float('nan')
 
 
-HEARTBEATS = {f'{n}: heartbeat' for n in ('sim_bridge', 'planner', 'damage_detector',
-                                          'sela_adapter')}
+HEARTBEATS = {n + ifc.HEARTBEAT_SUFFIX for n in ifc.NODES}
 
 
 def dds_mission(goal, seed, damage, overrides=None, steps_wanted=None, timeout=1800,
@@ -57,49 +53,35 @@ def dds_mission(goal, seed, damage, overrides=None, steps_wanted=None, timeout=1
     overrides.setdefault('sim_bridge', {}).update({'damage': damage, 'seed': seed})
     nodes = NodeProcesses(overrides)
     client = Client('sela_bench')
+    mission = MissionClient(client.node, lambda t: client.executor.spin_once(timeout_sec=t))
     times, memory = [], []
-    statuses = []
-    heard = set()
-
-    def on_diagnostics(msg):
-        statuses.extend(msg.status)
-        heard.update(s.name for s in msg.status)
-
-    client.node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, STATE_QOS)
-    pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
-    done = {'final': None}
+    seen = {'steps': 0}
 
     def progress():
-        while statuses:
-            status = statuses.pop(0)
-            if status.name != MISSION_STATUS:
-                continue
-            values = {kv.key: kv.value for kv in status.values}
-            if 'step' in values:
-                times.append((time.monotonic(), values))
-                n = len(times)
-                if n == 10 or n % 100 == 0 or n == steps_wanted:
-                    memory.append((n, {name: rss_mb(p.pid)
-                                       for name, (p, _) in nodes.procs.items()}))
-            elif 'success' in values:
-                done['final'] = values
-        return done['final'] is not None or (steps_wanted and len(times) >= steps_wanted)
+        for step in mission.steps[seen['steps']:]:
+            times.append((time.monotonic(), step.values))
+            n = len(times)
+            if n == 10 or n % 100 == 0 or n == steps_wanted:
+                memory.append((n, {name: rss_mb(p.pid) for name, (p, _) in nodes.procs.items()}))
+        seen['steps'] = len(mission.steps)
+        return mission.get_result() is not None or (steps_wanted and len(times) >= steps_wanted)
 
     try:
         # Start-up (imports, archive, discovery) is not part of a step: wait for every node's
         # heartbeat, then let the processes settle before the goal goes out.
-        client.spin_until(lambda: HEARTBEATS <= heard, 120, 'the four heartbeats')
+        client.spin_until(lambda: HEARTBEATS <= {s.name for s in mission.statuses}, 120,
+                          'the four heartbeats')
         end = time.monotonic() + settle
         client.spin_until(lambda: time.monotonic() > end, settle + 1)
-        statuses.clear()
         if before_goal is not None:
             before_goal()
-        pub.publish(conv.pose_stamped(goal, frame_id='odom'))
+        mission.go_to_pose(*goal)
         client.spin_until(progress, timeout, 'the mission')
     finally:
         client.close()
         nodes.stop()
-    return times, memory, done['final']
+    result = mission.get_result()
+    return times, memory, None if result is None else result.values
 
 
 def in_process(goal, seed, damage):

@@ -52,6 +52,7 @@ def _import_pybullet_quietly():
 
 p = _import_pybullet_quietly()
 
+from sela_ros.core.geometry import generic_reward, quaternion_to_yaw  # noqa: E402
 from sim_bridge import controller  # noqa: E402 - after the quiet import, on purpose
 from sim_bridge.damage import (  # noqa: E402
     JOINT_LIMITS,
@@ -221,12 +222,6 @@ def write_urdf(path: str = URDF_PATH, damage='intact') -> str:
 # --------------------------------------------------------------------------- outcomes
 
 
-def wrap_angle(angle: float) -> float:
-    """Wrap to (-pi, pi]."""
-    wrapped = math.remainder(angle, 2.0 * math.pi)
-    return math.pi if wrapped == -math.pi else wrapped
-
-
 @dataclass
 class GaitOutcome:
     """What one gait did.
@@ -246,15 +241,6 @@ class GaitOutcome:
     duty_factors: np.ndarray
     fallen: bool
     sim_time: float
-
-
-def generic_reward(start_pose, end_pose) -> np.ndarray:
-    """(dx, dy, dyaw) of ``end_pose`` in the frame of ``start_pose``."""
-    x0, y0, yaw0 = (float(v) for v in start_pose)
-    x1, y1, yaw1 = (float(v) for v in end_pose)
-    c, s = math.cos(yaw0), math.sin(yaw0)
-    dxw, dyw = x1 - x0, y1 - y0
-    return np.array([c * dxw + s * dyw, -s * dxw + c * dyw, wrap_angle(yaw1 - yaw0)])
 
 
 # --------------------------------------------------------------------------- simulator
@@ -455,9 +441,7 @@ class Hexapod:
 
     @staticmethod
     def _yaw(orn) -> float:
-        x, y, z, w = orn
-        # Heading of the body x axis projected on the ground: robust to tilt.
-        return math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
+        return quaternion_to_yaw(*orn)
 
     def pose(self) -> np.ndarray:
         """(x, y, yaw) of base_link in the world frame."""

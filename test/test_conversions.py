@@ -7,6 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
+from sela_ros.core.damage_detection import Verdict
 from sela_ros.nodes import conversions as conv
 
 unit = st.floats(0.0, 1.0, allow_nan=False)
@@ -117,3 +118,12 @@ def test_occupancy_grid_round_trip(h, w, data):
     back, res, origin = conv.occupancy_grid_from_msg(
         conv.occupancy_grid_to_msg(occ, 0.05, (-1.0, 2.0)))
     assert np.array_equal(back, occ) and res == 0.05 and np.array_equal(origin, [-1.0, 2.0])
+
+
+@given(st.integers(0, 2**40), st.booleans(), st.floats(0, 10), st.floats(0, 1))
+def test_verdict_round_trip(behavior_id, fire, error, threshold):
+    verdict = Verdict(error=error, mean_error=float('nan'), fire=fire, judged=True)
+    got = conv.verdict_from_msg(conv.verdict_to_msg(behavior_id, verdict, threshold))
+    assert got == (behavior_id, fire, error, threshold)
+    with pytest.raises(conv.MessageError, match='layout label'):
+        conv.verdict_from_msg(conv.prediction_to_msg(behavior_id, [0, 0, 0]))

@@ -6,38 +6,25 @@ import time
 
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
 from sela_ros.nodes import conversions as conv
-from sela_ros.nodes.adapter_node import MISSION_STATUS
-from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+from sela_ros.nodes import interface as ifc
+from sela_ros.tools.mission_client import MissionClient
 
 from ros_graph import Client, NodeProcesses
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
 
-class Diagnostics:
+class Diagnostics(MissionClient):
+    """The mission client of a test's client node."""
+
     def __init__(self, client):
-        self.statuses = []
-        client.node.create_subscription(DiagnosticArray, '/diagnostics',
-                                        lambda m: self.statuses.extend(m.status), STATE_QOS)
-
-    def steps(self):
-        return [{kv.key: kv.value for kv in s.values} for s in self.statuses
-                if s.name == MISSION_STATUS and any(kv.key == 'step' for kv in s.values)]
-
-    def finished(self):
-        return [{kv.key: kv.value for kv in s.values} for s in self.statuses
-                if s.name == MISSION_STATUS and any(kv.key == 'success' for kv in s.values)]
-
-    def errors(self, name_part):
-        return [s.message for s in self.statuses
-                if name_part in s.name and s.level == DiagnosticStatus.ERROR]
+        super().__init__(client.node, lambda t: client.executor.spin_once(timeout_sec=t))
 
 
 def _set(client, node, name, value, kind):
@@ -63,13 +50,10 @@ def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
     nodes, client = graph
     diag = Diagnostics(client)
     node = client.node
-    behavior_pub = node.create_publisher(Float64MultiArray, '/hexapod/behavior', COMMAND_QOS)
-    outcome_pub = node.create_publisher(Float64MultiArray, '/hexapod/behavior_outcome',
-                                        OUTCOME_QOS)
-    goal_pub = node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+    behavior_pub = ifc.publisher(node, ifc.BEHAVIOR)
+    outcome_pub = ifc.publisher(node, ifc.OUTCOME)
     outcomes = []
-    node.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
-                             lambda m: outcomes.append(m), OUTCOME_QOS)
+    ifc.subscription(node, ifc.OUTCOME, outcomes.append)
     client.spin_until(lambda: behavior_pub.get_subscription_count() > 0, 30, 'sim_bridge')
 
     # Behaviour commands: wrong length, NaN, infinity, out of [0, 1], bad id label.
@@ -92,13 +76,16 @@ def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
                                   for m in outcomes), 60, 'the outcome of a good command')
 
     # Goals: off the map, in another frame, NaN.
-    goal_pub.publish(conv.pose_stamped((40.0, 0.0), frame_id='odom'))
+    diag.wait_until_ready()
+    client.spin_until(lambda: diag._goal_pub.get_subscription_count() >= 2, 30,
+                      'the planner and the adapter to hear goals')
+    diag.publish_goal(40.0, 0.0)
     client.spin_until(lambda: any('off the map' in e for e in diag.errors('planner')), 30,
                       'goal off the map reported')
-    goal_pub.publish(conv.pose_stamped((1.0, 0.0), frame_id='map'))
+    diag.publish_goal(1.0, 0.0, frame_id='map')
     client.spin_until(lambda: any("frame 'map'" in e for e in diag.errors('planner')), 30,
                       'goal in another frame reported')
-    goal_pub.publish(conv.pose_stamped((math.nan, 0.0), frame_id='odom'))
+    diag.publish_goal(math.nan, 0.0)
     client.spin_until(lambda: any('finite' in e for e in diag.errors('planner')), 30,
                       'NaN goal reported')
 
@@ -122,7 +109,7 @@ def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
     broken.write_bytes(b'PK\x03\x04 truncated')
     r = _set(client, 'sela_adapter', 'archive', str(broken), ParameterType.PARAMETER_STRING)
     assert not r.successful and 'broken.npz' in r.reason
-    adapt = client.call(node.create_client(Trigger, '/sela_adapter/adapt'), Trigger.Request())
+    adapt = client.call(ifc.client(node, ifc.ADAPT), Trigger.Request())
     assert adapt.success
     time.sleep(1.0)
     assert all(nodes.alive().values()), nodes.logs()
@@ -134,8 +121,8 @@ def test_adapter_with_corrupt_archive_stays_up_and_says_why(tmp_path):
     nodes = NodeProcesses({'sela_adapter': {'archive': str(corrupt)}}, names=('sela_adapter',))
     client = Client()
     try:
-        answer = client.call(client.node.create_client(Trigger, '/sela_adapter/adapt'),
-                             Trigger.Request(), timeout=30)
+        answer = client.call(ifc.client(client.node, ifc.ADAPT), Trigger.Request(),
+                             timeout=30)
         assert not answer.success and 'no archive loaded' in answer.message
         assert nodes.alive() == {'sela_adapter': True}
         assert 'corrupt.npz' in nodes.logs()['sela_adapter.log']
@@ -156,18 +143,16 @@ def _observations(state_file):
 def test_killed_nodes_come_back_and_the_mission_completes(graph):
     nodes, client = graph
     diag = Diagnostics(client)
-    goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
-    client.wait_for_publishers(('/diagnostics', '/hexapod/behavior_outcome'))
-    goal_pub.publish(conv.pose_stamped((1.6, 1.2), frame_id='odom'))
-    client.spin_until(lambda: len(diag.steps()) >= 5, 200, 'five steps')
+    diag.go_to_pose(1.6, 1.2)
+    client.spin_until(lambda: len(diag.steps) >= 5, 200, 'five steps')
 
     # SIGKILL the adapter mid-mission: what it learned is on disk and comes back.
     nodes.kill('sela_adapter')
     before = _observations(nodes.state_file)
     assert len(before[0]) >= 3
     nodes.start('sela_adapter')
-    steps_at_restart = len(diag.steps())
-    client.spin_until(lambda: len(diag.steps()) >= steps_at_restart + 2, 200,
+    steps_at_restart = len(diag.steps)
+    client.spin_until(lambda: len(diag.steps) >= steps_at_restart + 2, 200,
                       'two steps after the adapter restarted')
     after = _observations(nodes.state_file)
     assert after[0][:len(before[0])] == before[0]
@@ -180,12 +165,12 @@ def test_killed_nodes_come_back_and_the_mission_completes(graph):
     nodes.start('planner')
 
     # SIGKILL the simulator: a new one starts, the adapter resends the lost command.
-    steps_now = len(diag.steps())
-    client.spin_until(lambda: len(diag.steps()) >= steps_now + 1, 200, 'one more step')
+    steps_now = len(diag.steps)
+    client.spin_until(lambda: len(diag.steps) >= steps_now + 1, 200, 'one more step')
     nodes.kill('sim_bridge')
     nodes.start('sim_bridge')
-    client.spin_until(lambda: diag.finished(), 400, 'the end of the mission')
-    assert diag.finished()[-1]['success'] == 'True', nodes.logs()
+    client.spin_until(diag.get_result, 400, 'the end of the mission')
+    assert diag.get_result().success, nodes.logs()
     assert all(nodes.alive().values()), nodes.logs()
 
 
@@ -198,20 +183,19 @@ def test_goal_inside_an_obstacle_is_refused_and_the_next_goal_goes_around_it(gra
     nodes, client = graph
     diag = Diagnostics(client)
     paths = []
-    client.node.create_subscription(conv.Path, '/planner/path', paths.append, LATCHED_QOS)
-    goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
-    client.wait_for_publishers(('/diagnostics', '/planner/path'))
-    goal_pub.publish(conv.pose_stamped((0.9, 0.9), frame_id='odom'))
+    ifc.subscription(client.node, ifc.PATH, paths.append)
+    client.wait_for_publishers((ifc.DIAGNOSTICS.root_name, ifc.PATH.root_name))
+    diag.go_to_pose(0.9, 0.9)
     client.spin_until(lambda: any('inside an obstacle' in e for e in diag.errors('planner')),
                       60, 'the goal inside the obstacle reported by the planner')
     client.spin_until(lambda: any('no plan to the goal' in e
                                   for e in diag.errors('sela_adapter')), 60,
                       'the adapter saying it has no plan')
-    assert not diag.steps()  # no gait was sent toward a goal that cannot be reached
+    assert not diag.steps  # no gait was sent toward a goal that cannot be reached
     # A goal behind the obstacle: reached, on paths that never cross it.
-    goal_pub.publish(conv.pose_stamped((1.5, 1.5), frame_id='odom'))
-    client.spin_until(lambda: diag.finished(), 300, 'the end of the mission')
-    assert diag.finished()[-1]['success'] == 'True', nodes.logs()
+    diag.go_to_pose(1.5, 1.5)
+    client.spin_until(diag.get_result, 300, 'the end of the mission')
+    assert diag.get_result().success, nodes.logs()
     assert paths
     for path in paths:
         for pose in path.poses:
@@ -240,19 +224,16 @@ def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_faile
     client = Client()
     try:
         diag = Diagnostics(client)
-        goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
-        client.wait_for_publishers(('/diagnostics', '/hexapod/behavior_outcome'))
-        goal_pub.publish(conv.pose_stamped((1.0, 0.0), frame_id='odom'))
-        client.spin_until(lambda: len(diag.steps()) >= 2, 120, 'two steps')
-        first, second = diag.steps()[:2]
-        assert first['behavior_index'] == '0' and first['fallen'] == 'True', first
-        assert first['failed_steps'] == '1'
+        diag.go_to_pose(1.0, 0.0)
+        client.spin_until(lambda: len(diag.steps) >= 2, 120, 'two steps')
+        first, second = diag.steps[:2]
+        assert first.behavior_index == 0 and first.fallen, first
+        assert first.failed_steps == 1
         assert any('fell' in e for e in diag.errors('sim_bridge: robot'))
         assert any('failed: the robot fell' in e and '/sim_bridge/reset' in e
                    for e in diag.errors('sela_adapter'))
         # It fell away from the start, and the next step started from the start again.
-        end = np.array(first['end_pose'].split(), float)
-        start = np.array(second['pose'].split(), float)
+        end, start = first.end_pose, second.pose
         assert np.linalg.norm(end[:2]) > 0.1, first
         assert np.linalg.norm(start[:2]) < 0.02 and abs(start[2]) < 0.02, second
         assert 'reset: robot back at the start' in nodes.logs()['sela_adapter.log']
@@ -267,12 +248,10 @@ def test_archive_built_for_another_simulator_is_refused_with_the_reason(graph):
     nodes, client = graph
     diag = Diagnostics(client)
     commands = []
-    client.node.create_subscription(Float64MultiArray, '/hexapod/behavior', commands.append,
-                                    COMMAND_QOS)
-    # The mismatch is reported when found and again with every goal (a goal reaches the
-    # adapter once this client is discovered, so the report then reaches it too).
-    goal_pub = client.node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
-    goal_pub.publish(conv.pose_stamped((1.0, 0.0), frame_id='odom'))
+    ifc.subscription(client.node, ifc.BEHAVIOR, commands.append)
+    # The mismatch is reported when found and again with every goal (the goal is taken once
+    # the adapter hears this client, so the report then reaches it too).
+    diag.go_to_pose(1.0, 0.0)
     client.spin_until(lambda: any('other simulator settings' in e
                                   for e in diag.errors('sela_adapter')), 60,
                       'the mismatch reported')
@@ -280,5 +259,5 @@ def test_archive_built_for_another_simulator_is_refused_with_the_reason(graph):
     assert 'dt' in error and '0.005' in error and 'archive' in error
     end = time.monotonic() + 3.0
     client.spin_until(lambda: time.monotonic() > end, 5.0)
-    assert not commands and not diag.steps()  # nothing sent on a map of another simulator
+    assert not commands and not diag.steps  # nothing sent on a map of another simulator
     assert all(nodes.alive().values()), nodes.logs()

@@ -6,6 +6,7 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from sela_ros.core.geometry import wrap_angle
 from sim_bridge import hexapod as hx
 from sim_bridge.controller import tripod_gait
 from sim_bridge.damage import LEG_NAMES, DamageSpecError
@@ -168,7 +169,7 @@ def test_set_damage_keeps_pose(sim):
     t = sim.sim_time
     sim.set_damage('remove:middle_right,block:front_left.knee')
     np.testing.assert_allclose(sim.pose()[:2], before[:2], atol=2e-3)
-    assert abs(hx.wrap_angle(sim.pose()[2] - before[2])) < 2e-3
+    assert abs(wrap_angle(sim.pose()[2] - before[2])) < 2e-3
     assert sim.sim_time == t and not sim.is_fallen()
     sim.reset()
     np.testing.assert_allclose(sim.pose(), 0.0, atol=1e-3)
@@ -200,7 +201,7 @@ def test_generic_reward_frame_and_wrap():
     gr = hx.generic_reward([1.0, 1.0, math.pi / 2], [1.0, 2.0, -math.pi + 0.1])
     # Facing +y, a step of +1 in world y is straight ahead; yaw change wraps to +pi/2+0.1.
     np.testing.assert_allclose(gr, [1.0, 0.0, math.pi / 2 + 0.1], atol=1e-12)
-    assert hx.wrap_angle(-math.pi) == math.pi
+    assert wrap_angle(-math.pi) == math.pi
 
 
 def test_several_instances_coexist():

@@ -9,7 +9,8 @@ import time
 import numpy as np
 import pytest
 
-from sela_ros.core.mission import MissionLogic, as_seen_in_odometry
+from sela_ros.core.learning import MissionLogic
+from sela_ros.core.mission import as_seen_in_odometry
 from sela_ros.core.persistence import StateError, atomic_write_json, load_state, set_aside
 from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
 from sela_ros.nodes.heartbeat import SilenceWatch

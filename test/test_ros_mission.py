@@ -3,59 +3,47 @@
 import numpy as np
 import pytest
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseStamped
+from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
-from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
 from sela_ros.core.archive import default_archive_path, load_archive
 from sela_ros.nodes import conversions as conv
-from sela_ros.nodes.adapter_node import MISSION_STATUS
-from sela_ros.nodes.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
-from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+from sela_ros.nodes import interface as ifc
+from sela_ros.tools.mission_client import MissionClient
 
 from ros_graph import CONFIG, Client, NodeProcesses
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
 
-class Watcher:
-    """Collects what the nodes say: mission steps, verdicts, commands, outcomes, rewards."""
+class Watcher(MissionClient):
+    """The mission client, plus what else the nodes say: commands, outcomes, rewards and
+    the detector's verdicts (on diagnostics, for monitoring)."""
 
     def __init__(self, client):
-        self.steps, self.finals, self.verdicts = [], [], []
+        super().__init__(client.node, lambda t: client.executor.spin_once(timeout_sec=t))
         self.commands, self.outcomes, self.rewards = [], [], []
         self.client = client
         node = client.node
-        node.create_subscription(DiagnosticArray, '/diagnostics', self._diag, STATE_QOS)
-        node.create_subscription(Float64MultiArray, '/hexapod/behavior',
-                                 lambda m: self.commands.append(conv.behavior_from_msg(m)[1]),
-                                 COMMAND_QOS)
-        node.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
-                                 lambda m: self.outcomes.append(conv.outcome_from_msg(m)),
-                                 OUTCOME_QOS)
-        node.create_subscription(Float64, '/sela/reward', lambda m: self.rewards.append(m.data),
-                                 COMMAND_QOS)
-        self.goal_pub = node.create_publisher(PoseStamped, '/goal_pose', LATCHED_QOS)
+        ifc.subscription(node, ifc.BEHAVIOR,
+                         lambda m: self.commands.append(conv.behavior_from_msg(m)[1]))
+        ifc.subscription(node, ifc.OUTCOME,
+                         lambda m: self.outcomes.append(conv.outcome_from_msg(m)))
+        ifc.subscription(node, ifc.REWARD, lambda m: self.rewards.append(m.data))
 
-    def _diag(self, msg):
-        for status in msg.status:
-            values = {kv.key: kv.value for kv in status.values}
-            if status.name == MISSION_STATUS and 'step' in values:
-                self.steps.append(values)
-            elif status.name == MISSION_STATUS and 'success' in values:
-                self.finals.append(values)
-            elif status.name == DETECTOR_STATUS:
-                self.verdicts.append((status.level, values))
+    @property
+    def verdicts(self):
+        return [(s.level, conv.status_values(s)) for s in self.statuses
+                if s.name == ifc.DETECTOR_STATUS]
 
     def send_goal(self, x, y):
         # Everything published after the goal must reach this watcher.
-        self.client.wait_for_publishers(('/diagnostics', '/hexapod/behavior',
-                                         '/hexapod/behavior_outcome', '/sela/reward'))
-        self.goal_pub.publish(conv.pose_stamped((x, y), frame_id='odom'))
+        self.client.wait_for_publishers([ifc.DIAGNOSTICS.root_name, ifc.BEHAVIOR.root_name,
+                                         ifc.OUTCOME.root_name, ifc.REWARD.root_name])
+        self.go_to_pose(x, y)
 
 
 @pytest.fixture
@@ -110,9 +98,8 @@ def test_damaged_mission_reaches_goal_with_the_in_process_decisions(graph):
     watcher = Watcher(client)
     goal = (1.5, 1.0)
     watcher.send_goal(*goal)
-    client.spin_until(lambda: watcher.finals, 400, 'the end of the mission')
-    final = watcher.finals[-1]
-    assert final['success'] == 'True', (final, nodes.logs())
+    client.spin_until(lambda: watcher.get_result(), 400, 'the end of the mission')
+    assert watcher.get_result().success, (watcher.get_result(), nodes.logs())
     # Each command pairs with exactly one outcome, and each step published one reward.
     ids = [o.behavior_id for o in watcher.outcomes if o.behavior_id in set(watcher.commands)]
     assert sorted(ids) == sorted(watcher.commands)
@@ -120,14 +107,14 @@ def test_damaged_mission_reaches_goal_with_the_in_process_decisions(graph):
     assert len(watcher.rewards) == len(watcher.steps)
     # The detector saw the damage and adaptation began.
     assert any(level == DiagnosticStatus.ERROR for level, _ in watcher.verdicts)
-    assert any(s['adapting'] == 'True' for s in watcher.steps)
+    assert any(s.adapting for s in watcher.steps)
     # The final observed pose is within goal.eps of the goal.
-    end = [float(v) for v in watcher.steps[-1]['end_pose'].split()]
+    end = watcher.steps[-1].end_pose
     assert np.hypot(end[0] - goal[0], end[1] - goal[1]) < 0.1
     # Same seed, same decisions: the DDS mission took the in-process mission's gaits.
     success, logic = _in_process_mission('remove:middle_right', 7, goal)
     assert success
-    assert [int(s['behavior_index']) for s in watcher.steps] == \
+    assert [s.behavior_index for s in watcher.steps] == \
         [r.behavior_index for r in logic.records]
 
 
@@ -142,23 +129,31 @@ def _set_param(client, node, name, value):
 def test_every_service_answers(graph):
     nodes, client = graph
     node = client.node
-    reset_cli = node.create_client(Trigger, '/sim_bridge/reset')
+    reset_cli = ifc.client(node, ifc.RESET)
     reset = client.call(reset_cli, Trigger.Request())
     assert reset.success and 'start' in reset.message
 
-    plan_cli = node.create_client(GetPlan, '/planner/make_plan')
+    # The plan ends at the waypoint (planner.lookahead along the path); the full path to the
+    # goal is on planner/path.
+    paths = []
+    ifc.subscription(node, ifc.PATH, paths.append)
+    plan_cli = ifc.client(node, ifc.MAKE_PLAN)
     request = GetPlan.Request()
     request.start = conv.pose_stamped((0.0, 0.0), frame_id='odom')
     request.goal = conv.pose_stamped((1.0, 1.5), frame_id='odom')
-    path = conv.path_from_msg(client.call(plan_cli, request).plan)
-    assert len(path) >= 2
+    plan = conv.path_from_msg(client.call(plan_cli, request).plan)
+    lookahead = _config()['planner']['ros__parameters']['planner.lookahead']
+    assert len(plan) >= 2 and np.allclose(plan[0], 0, atol=0.05)
+    assert np.hypot(*plan[-1]) == pytest.approx(lookahead, abs=0.05)  # no obstacle: a line
+    client.spin_until(lambda: paths and len(paths[-1].poses) >= 2, 20, 'the full path')
+    path = conv.path_from_msg(paths[-1])
     assert np.allclose(path[-1], [1.0, 1.5], atol=0.05) and np.allclose(path[0], 0, atol=0.05)
     request.goal = conv.pose_stamped((50.0, 0.0), frame_id='odom')  # off the map
     assert client.call(plan_cli, request).plan.poses == []
 
-    adapt = client.call(node.create_client(Trigger, '/sela_adapter/adapt'), Trigger.Request())
+    adapt = client.call(ifc.client(node, ifc.ADAPT), Trigger.Request())
     assert adapt.success and 'adaptation started' in adapt.message
-    adapt = client.call(node.create_client(Trigger, '/sela_adapter/adapt'), Trigger.Request())
+    adapt = client.call(ifc.client(node, ifc.ADAPT), Trigger.Request())
     assert adapt.success and 'restarted' in adapt.message
 
     bad = _set_param(client, 'sim_bridge', 'damage', 'remove:middle_centre')
@@ -169,12 +164,10 @@ def test_every_service_answers(graph):
     # While gaits run, the simulator still answers at once: a reset asked during them is
     # queued behind them (the answer says so), and the robot ends up back at the start.
     outcomes, poses = [], []
-    node.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
-                             lambda m: outcomes.append(conv.outcome_from_msg(m)), OUTCOME_QOS)
-    node.create_subscription(conv.Odometry, '/hexapod/odom',
-                             lambda m: poses.append(conv.pose_from_odometry(m)), STATE_QOS)
-    behavior_pub = node.create_publisher(Float64MultiArray, '/hexapod/behavior', COMMAND_QOS)
-    client.wait_for_publishers(('/hexapod/behavior_outcome', '/hexapod/odom'))
+    ifc.subscription(node, ifc.OUTCOME, lambda m: outcomes.append(conv.outcome_from_msg(m)))
+    ifc.subscription(node, ifc.ODOM, lambda m: poses.append(conv.pose_from_odometry(m)))
+    behavior_pub = ifc.publisher(node, ifc.BEHAVIOR)
+    client.wait_for_publishers((ifc.OUTCOME.root_name, ifc.ODOM.root_name))
     client.spin_until(lambda: behavior_pub.get_subscription_count() > 0, 30, 'sim_bridge')
     archive = load_archive(default_archive_path())
     forward = archive.params[int(np.argmax(archive.generic_reward[:, 0]))]
@@ -198,8 +191,8 @@ def test_damage_changed_at_run_time_restarts_adaptation(graph):
     watcher = Watcher(client)
     watcher.send_goal(2.5, 2.5)
     client.spin_until(lambda: len(watcher.steps) >= 8, 300, 'eight steps')
-    assert any(s['adapting'] == 'True' for s in watcher.steps)
-    adaptations_before = int(watcher.steps[-1]['adaptations'])
+    assert any(s.adapting for s in watcher.steps)
+    adaptations_before = watcher.steps[-1].adaptations
     detections_before = sum(level == DiagnosticStatus.ERROR for level, _ in watcher.verdicts)
     change_step = len(watcher.steps)
     result = _set_param(client, 'sim_bridge', 'damage', 'remove:middle_right,remove:front_left')
@@ -207,7 +200,7 @@ def test_damage_changed_at_run_time_restarts_adaptation(graph):
 
     def restarted():
         late = watcher.steps[change_step:]
-        return late and int(late[-1]['adaptations']) > adaptations_before
+        return late and late[-1].adaptations > adaptations_before
     client.spin_until(restarted, 300, 'adaptation to restart after the damage changed')
     detections_after = sum(level == DiagnosticStatus.ERROR for level, _ in watcher.verdicts)
     assert detections_after > detections_before

@@ -10,7 +10,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters
 from std_msgs.msg import String
 
-from sela_ros.nodes.qos import LATCHED_QOS
+from sela_ros.nodes.interface import LATCHED_QOS
 from sela_ros.tools.ros_env import executable
 
 from ros_graph import Client, NodeProcesses

@@ -1,9 +1,10 @@
-"""The paper's outer loop: walk to the goal, trust the map until damage is detected, then
-adapt with SELA while walking. ROS-free.
+"""The paper's outer loop, in process: walk to the goal, trust the map until damage is
+detected, then adapt with SELA while walking. ROS-free.
 
-:class:`MissionLogic` holds the decisions of one mission; the ``sela_adapter`` node drives it
-from DDS messages and :func:`run_mission` drives it in process against the simulator, so
-that, for the same seed, both take the same gaits in the same order (a test checks it).
+:func:`run_mission` drives a :class:`~sela_ros.core.stepper.MissionStepper` against the
+simulator, the planner and the damage detector called directly; the ``sela_adapter`` node
+drives the same stepper from DDS messages. For the same seed both take the same gaits in
+the same order: they are the same code, fed the same observations.
 
 One step:
 
@@ -14,108 +15,28 @@ One step:
 5. the damage detector compares it with the prediction; when it fires, adaptation starts
    (from this observation) or, if it was running, restarts from scratch (new damage).
 """
-import math
-from dataclasses import asdict, dataclass
+import time
+from collections import deque
 
 import numpy as np
 
 from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
-from sela_ros.core.planning import next_waypoint
-from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
-
-# SELA receives the waypoint itself (a two-point path) and must not shorten it.
-_NO_LOOKAHEAD = 1e9
-
-
-@dataclass
-class StepRecord:
-    """One mission step, as printed by the demo and stored in its summary."""
-
-    step: int
-    behavior_index: int
-    pose: list
-    waypoint: list
-    predicted_gr: list
-    observed_gr: list
-    reward: float
-    sigma: float
-    adapting: bool
-    error: float = float('nan')
-    detected: bool = False
-    fallen: bool = False
-    true_pose: list = None
-
-    def to_dict(self):
-        return asdict(self)
-
-
-def make_sela(archive, config=None):
-    """A SE(2) SELA over the archive's behaviours (prior mean: the intact robot's GR)."""
-    values = dict(config or {})
-    values['planner.lookahead'] = _NO_LOOKAHEAD
-    return SELA(archive.normalised_descriptors(), archive.generic_reward, SE2Motion(),
-                config=SELAConfig.from_dict(values))
-
-
-class MissionLogic:
-    """The decisions of one mission; fed poses, waypoints and outcomes by its driver.
-
-    Args:
-        sela: the SELA learner over the archive.
-        adapt_on_start: learn from the first step instead of waiting for the detector.
-        reset_on_fall: a step that ends fallen is followed by a reset to the start, so the
-            gait took the robot nowhere: it is learnt as a zero displacement (learning the
-            tumble's displacement instead would make a gait that falls toward the goal look
-            good, and the robot would try it again and again from the start).
-    """
-
-    def __init__(self, sela, adapt_on_start=False, reset_on_fall=False):
-        self.sela = sela
-        self.reset_on_fall = bool(reset_on_fall)
-        self.adapting = bool(adapt_on_start)
-        self.adaptations = 1 if adapt_on_start else 0
-        self.last = None  # (index, observed_gr) of the latest outcome
-        self.records = []
-
-    def decide(self, pose, waypoint):
-        """Step 2: the behaviour to execute from ``pose`` toward ``waypoint``."""
-        pose = np.asarray(pose, dtype=float)
-        waypoint = np.asarray(waypoint, dtype=float)
-        self.sela.planner = lambda start, goal: np.array([pose[:2], waypoint])
-        return self.sela.ask(pose)
-
-    def outcome(self, decision, pose, observed_gr, fallen=False, true_pose=None):
-        """Step 4: record the outcome of ``decision`` and learn from it when adapting."""
-        observed_gr = np.asarray(observed_gr, dtype=float)
-        learnt = np.zeros_like(observed_gr) if fallen and self.reset_on_fall else observed_gr
-        self.sela.tell_fall(decision.index, bool(fallen))
-        if self.adapting:
-            self.sela.tell(decision.index, learnt)
-        self.last = (decision.index, learnt)
-        record = StepRecord(
-            step=len(self.records) + 1, behavior_index=int(decision.index),
-            pose=np.asarray(pose, float).tolist(), waypoint=decision.waypoint.tolist(),
-            predicted_gr=decision.predicted_gr.tolist(), observed_gr=observed_gr.tolist(),
-            reward=float(decision.reward), sigma=float(decision.sigma),
-            adapting=self.adapting, fallen=bool(fallen),
-            true_pose=None if true_pose is None else np.asarray(true_pose, float).tolist())
-        self.records.append(record)
-        return record
-
-    def prediction_sigma(self, decision):
-        """How unsure the prediction of ``decision`` is: 0 while the map is trusted."""
-        return float(decision.sigma) if self.adapting else 0.0
-
-    def adapt(self):
-        """Step 5: start adaptation, or restart it from scratch if it was running."""
-        if self.adapting:
-            self.sela.reset_learning()
-        self.adapting = True
-        self.adaptations += 1
-        if self.last is not None:
-            self.sela.tell(*self.last)
-        if self.records:
-            self.records[-1].detected = True
+from sela_ros.core.geometry import quaternion_to_yaw, yaw_to_quaternion
+from sela_ros.core.learning import make_sela
+from sela_ros.core.planning import PlanningError, next_waypoint
+from sela_ros.core.stepper import MissionStepper
+from sela_ros.core.stepper_io import (
+    GoalReceived,
+    OutcomeReceived,
+    PlanReceived,
+    PoseObserved,
+    RequestPlan,
+    RequestReset,
+    ResetDone,
+    SendGait,
+    StepperConfig,
+    VerdictReceived,
+)
 
 
 def waypoint_for(planner, pose, goal, lookahead):
@@ -127,8 +48,7 @@ def waypoint_for(planner, pose, goal, lookahead):
 def as_seen_in_odometry(pose):
     """The pose after a trip through nav_msgs/Odometry (yaw -> quaternion -> yaw)."""
     x, y, yaw = (float(v) for v in pose)
-    qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-    return np.array([x, y, math.atan2(2.0 * (qw * qz), 1.0 - 2.0 * (qz * qz))])
+    return np.array([x, y, quaternion_to_yaw(*yaw_to_quaternion(yaw))])
 
 
 def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
@@ -141,32 +61,42 @@ def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
     ends fallen is followed by ``env.reset()`` (the robot back at the start) and the next
     step starts from the odometry, as the node does through ``/sim_bridge/reset``.
     Returns ``(success, logic)``; success is judged on the observed pose within ``goal.eps``,
-    as the adapter judges it.
+    as the adapter judges it; ``logic.records`` lists the steps.
     """
-    sela = make_sela(archive, sela_config)
-    sela.set_goal(goal)
-    logic = MissionLogic(sela, adapt_on_start=adapt_on_start, reset_on_fall=reset_on_fall)
+    stepper = MissionStepper(make_sela(archive, sela_config), StepperConfig(
+        max_steps=max_steps, adapt_on_start=adapt_on_start, reset_on_fall=reset_on_fall))
     detector = DamageDetector(detector_config or DetectorConfig())
-    pose = as_seen_in_odometry(env.true_pose())
-    for _ in range(max_steps):
-        if sela.goal_reached(pose):
-            return True, logic
-        waypoint, _ = waypoint_for(planner, pose, goal, lookahead)
-        decision = logic.decide(pose, waypoint)
-        execution = env.execute(archive.params[decision.index])
-        sigma = logic.prediction_sigma(decision)
-        record = logic.outcome(decision, pose, execution.observed_generic_reward,
-                               fallen=execution.fallen, true_pose=execution.true_end)
-        verdict = detector.observe(decision.predicted_gr, execution.observed_generic_reward,
-                                   sigma)
-        record.error = verdict.error
-        if verdict.fire:
-            logic.adapt()
-        pose = execution.observed_end
-        if execution.fallen and reset_on_fall:
-            env.reset()
-            pose = as_seen_in_odometry(env.true_pose())
-        if on_step is not None:
-            on_step(record)
-    return bool(sela.goal_reached(pose)), logic
 
+    def odometry():
+        return PoseObserved(as_seen_in_odometry(env.true_pose()))
+
+    commands = deque(stepper.handle(odometry(), time.monotonic()))
+    commands += stepper.handle(GoalReceived(tuple(goal)), time.monotonic())
+    while commands:
+        command = commands.popleft()
+        events = []
+        if isinstance(command, RequestPlan):
+            try:
+                waypoint, _ = waypoint_for(planner, command.start, command.goal, lookahead)
+                events.append(PlanReceived(command.step, command.start, waypoint))
+            except PlanningError as exc:
+                events.append(PlanReceived(command.step, command.start, None, str(exc)))
+        elif isinstance(command, SendGait):
+            execution = env.execute(archive.params[command.index])
+            observed = execution.observed_generic_reward
+            events.append(OutcomeReceived(command.behavior_id, observed, execution.observed_end,
+                                          execution.fallen, true_pose=execution.true_end))
+            verdict = detector.observe(command.predicted_gr, observed, command.sigma)
+            events.append(VerdictReceived(command.behavior_id, verdict.fire, verdict.error,
+                                          detector.config.threshold))
+        elif isinstance(command, RequestReset):
+            env.reset()
+            events += [ResetDone(True, 'robot back at the start'), odometry()]
+        for event in events:
+            commands += stepper.handle(event, time.monotonic())
+        if isinstance(command, SendGait):
+            record = stepper.logic.records[-1]
+            record.error = verdict.error
+            if on_step is not None:
+                on_step(record)
+    return bool(stepper.result), stepper.logic

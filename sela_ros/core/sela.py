@@ -15,12 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sela_ros.core import acquisition, fall_risk, gp
+from sela_ros.core.geometry import se2_compose, se2_relative
 from sela_ros.core.planning import next_waypoint, straight_line_planner
-
-
-def wrap_angle(angle):
-    """Wrap angles to ``[-pi, pi)``."""
-    return (np.asarray(angle, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class PointMotion:
@@ -50,12 +46,7 @@ class SE2Motion:
     gr_dim = 3
 
     def predict(self, pose, gr):
-        x, y, yaw = np.asarray(pose, dtype=float)[:3]
-        gr = np.asarray(gr, dtype=float)
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy, dyaw = gr[..., 0], gr[..., 1], gr[..., 2]
-        return np.stack([x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(yaw + dyaw)],
-                        axis=-1)
+        return se2_compose(pose, gr)
 
     def predict_xy_columns(self, pose, gr_t):
         """Predicted ``(x (M,), y (M,))`` from GRs given as rows ``gr_t`` (k, M)."""
@@ -64,11 +55,7 @@ class SE2Motion:
 
     def generic_reward(self, pose_before, pose_after):
         """``afun``: world displacement rotated into the start frame, yaw change wrapped."""
-        b = np.asarray(pose_before, dtype=float)[:3]
-        a = np.asarray(pose_after, dtype=float)[:3]
-        c, s = math.cos(b[2]), math.sin(b[2])
-        dx, dy = a[0] - b[0], a[1] - b[1]
-        return np.array([c * dx + s * dy, -s * dx + c * dy, float(wrap_angle(a[2] - b[2]))])
+        return se2_relative(pose_before, pose_after)
 
 
 def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
@@ -233,13 +220,21 @@ class SELA:
         mu, var = self._gp.query()
         return mu, np.sqrt(var)
 
-    def ask(self, pose) -> Decision:
-        """Choose the next behaviour from ``pose`` (raises PlanningError if no path)."""
-        if self.goal is None:
-            raise RuntimeError('no goal: call set_goal() before ask()')
+    def ask(self, pose, waypoint=None) -> Decision:
+        """Choose the next behaviour from ``pose`` (raises PlanningError if no path).
+
+        ``waypoint``: the reward selection layer's answer when it runs elsewhere (the
+        planner node); None: plan to the goal here and take ``planner.lookahead`` along it.
+        """
         pose = self._check_pose(pose)
-        path = np.asarray(self.planner(pose[:2], self.goal), dtype=float)
-        waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
+        if waypoint is not None:
+            waypoint = np.asarray(waypoint, dtype=float).reshape(-1)[:2]
+            path = np.array([pose[:2], waypoint])
+        else:
+            if self.goal is None:
+                raise RuntimeError('no goal: call set_goal() before ask()')
+            path = np.asarray(self.planner(pose[:2], self.goal), dtype=float)
+            waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
         mu_t, var = self._gp.query_columns()
         x, y = self.motion.predict_xy_columns(pose, mu_t)
         reward = -np.hypot(x - waypoint[0], y - waypoint[1])

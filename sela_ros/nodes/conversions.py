@@ -12,6 +12,9 @@ defined in one place (and documented in the README):
 * ``/sela/prediction`` (``std_msgs/Float64MultiArray``): ``[behavior_id, dx, dy, dyaw,
   sigma]``, what the adapter expected the command to do and how unsure it was (sigma 0 while
   it trusts the intact map), for the damage detector.
+* ``/damage_detector/verdict`` (``std_msgs/Float64MultiArray``): ``[behavior_id, fire,
+  judged, error, mean_error, threshold]``, the detector's judgement of that command's
+  outcome (fire 1: damage detected, adapt; mean_error -1 before anything was judged).
 """
 import math
 from dataclasses import dataclass, field
@@ -24,6 +27,9 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
+from sela_ros.core import geometry
+from sela_ros.core.stepper_io import OutcomeReceived
+
 N_PARAMS = 36
 BEHAVIOR_ID_PREFIX = 'behavior_id='
 OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
@@ -31,6 +37,7 @@ OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'star
                   'duty_0', 'duty_1', 'duty_2', 'duty_3', 'duty_4', 'duty_5')
 OUTCOME_LABEL = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS)
 PREDICTION_LABEL = 'prediction:behavior_id,dx,dy,dyaw,sigma'
+VERDICT_LABEL = 'verdict:behavior_id,fire,judged,error,mean_error,threshold'
 
 
 class MessageError(ValueError):
@@ -54,14 +61,12 @@ class BehaviorOutcome:
 
 
 def yaw_to_quaternion(yaw):
-    q = Quaternion()
-    q.z = math.sin(yaw / 2.0)
-    q.w = math.cos(yaw / 2.0)
-    return q
+    x, y, z, w = geometry.yaw_to_quaternion(yaw)
+    return Quaternion(x=x, y=y, z=z, w=w)
 
 
 def quaternion_to_yaw(q):
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    return geometry.quaternion_to_yaw(q.x, q.y, q.z, q.w)
 
 
 def time_to_msg(seconds):
@@ -161,24 +166,58 @@ def outcome_from_msg(msg):
                            duty_factors=values[12:18].copy())
 
 
-def prediction_to_msg(behavior_id, generic_reward, sigma=0.0):
-    gr = _finite_array(generic_reward, 'prediction', 3)
-    sigma = _finite_array([sigma], 'prediction sigma', 1)[0]
+def _labelled(label, values):
     msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label=PREDICTION_LABEL, size=5, stride=5)]
-    msg.data = [float(behavior_id), *gr.tolist(), float(sigma)]
+    msg.layout.dim = [MultiArrayDimension(label=label, size=len(values), stride=len(values))]
+    msg.data = [float(v) for v in values]
     return msg
 
 
-def prediction_from_msg(msg):
-    if not msg.layout.dim or msg.layout.dim[0].label != PREDICTION_LABEL:
-        raise MessageError(f'prediction: layout label is not {PREDICTION_LABEL!r}')
-    values = _finite_array(msg.data, 'prediction', 5)
+def _unlabelled(msg, label, name):
+    """The values of a record labelled ``label``; the first one is a command id."""
+    if not msg.layout.dim or msg.layout.dim[0].label != label:
+        raise MessageError(f'{name}: layout label is not {label!r}')
+    values = _finite_array(msg.data, name, label.count(',') + 1)
     if values[0] < 0 or values[0] != int(values[0]):
-        raise MessageError(f'prediction: id {values[0]} is not a non-negative integer')
+        raise MessageError(f'{name}: id {values[0]} is not a non-negative integer')
+    return values
+
+
+def outcome_event(msg):
+    """The mission stepper's event for an outcome message."""
+    o = outcome_from_msg(msg)
+    return OutcomeReceived(o.behavior_id, tuple(o.generic_reward), tuple(o.end_pose),
+                           o.fallen, o.sim_time)
+
+
+def prediction_to_msg(behavior_id, generic_reward, sigma=0.0):
+    gr = _finite_array(generic_reward, 'prediction', 3)
+    sigma = _finite_array([sigma], 'prediction sigma', 1)[0]
+    return _labelled(PREDICTION_LABEL, [behavior_id, *gr.tolist(), sigma])
+
+
+def prediction_from_msg(msg):
+    values = _unlabelled(msg, PREDICTION_LABEL, 'prediction')
     if values[4] < 0:
         raise MessageError(f'prediction: sigma {values[4]} is negative')
     return int(values[0]), values[1:4].copy(), float(values[4])
+
+
+def verdict_to_msg(behavior_id, verdict, threshold):
+    """The damage detector's judgement (a core ``Verdict``) of the outcome of a command."""
+    return _labelled(VERDICT_LABEL, [behavior_id, verdict.fire, verdict.judged,
+                                     verdict.error, _nan_as(verdict.mean_error, -1.0),
+                                     threshold])
+
+
+def verdict_from_msg(msg):
+    """Return ``(behavior_id, fire, error, threshold)``."""
+    values = _unlabelled(msg, VERDICT_LABEL, 'verdict')
+    return int(values[0]), bool(values[1] >= 0.5), float(values[3]), float(values[5])
+
+
+def _nan_as(value, default):
+    return default if math.isnan(value) else value
 
 
 # --- poses, goals, paths -------------------------------------------------------------------
@@ -293,6 +332,11 @@ def diagnostic_status(level, name, message, values=None, hardware_id='sela_ros')
     status = DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id)
     status.values = [KeyValue(key=str(k), value=str(v)) for k, v in (values or {}).items()]
     return status
+
+
+def diagnostic_level(level):
+    """DiagnosticStatus's level for a core ``Level`` (OK 0, WARN 1, ERROR 2: the same)."""
+    return bytes([int(level)])
 
 
 def diagnostic_array(statuses, stamp):

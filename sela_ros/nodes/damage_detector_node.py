@@ -1,27 +1,26 @@
 """The ``damage_detector`` node: compares each outcome with the prediction that preceded it.
 
-Pairs ``/sela/prediction`` and ``/hexapod/behavior_outcome`` by command id, judges the error
-with :class:`sela_ros.core.damage_detection.DamageDetector` and publishes one verdict per outcome
-on ``/diagnostics`` (name ``damage_detector: prediction error``; level ERROR when damage is
-detected). When it detects damage it first calls ``/sela_adapter/adapt`` and publishes the
-verdict once the adapter has answered, so that the adapter's next choice already knows.
+Pairs ``sela/prediction`` and ``hexapod/behavior_outcome`` by command id, in whichever
+order they arrive (both are reliable and kept for late joiners), judges the error with
+:class:`sela_ros.core.damage_detection.DamageDetector` and publishes one verdict per outcome
+on ``~/verdict`` (``/damage_detector/verdict``): the adapter waits for it, and adapts when it
+says damage was detected. The same verdict goes to ``diagnostics`` (name ``damage_detector:
+prediction error``; level ERROR when damage is detected) for whoever monitors the robot.
 """
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
-from std_srvs.srv import Trigger
 
 from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
 from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.heartbeat import SilenceWatch, add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
-from sela_ros.nodes.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 
-STATUS_NAME = 'damage_detector: prediction error'
-ADAPT_TIMEOUT = 5.0
+STATUS_NAME = ifc.DETECTOR_STATUS
+UNPAIRED_KEPT = 1000  # predictions or outcomes waiting for their other half
 
 
 def parameters(defaults):
@@ -39,33 +38,27 @@ def parameters(defaults):
              '(std) are judged', low=0.0, high=10.0, unit=' m'),
         Spec('heartbeat.timeout', 5.0, 'wall time without a heartbeat before a node is reported '
              'silent', low=0.1, high=3600.0, unit=' s'),
-        Spec('heartbeat.nodes', ['sim_bridge', 'planner', 'sela_adapter'],
+        Spec('heartbeat.nodes', [ifc.SIM_BRIDGE, ifc.PLANNER, ifc.SELA_ADAPTER],
              'nodes whose heartbeat is watched', read_only=True),
     )
 
 
 class DamageDetectorNode(Node):
     def __init__(self):
-        super().__init__('damage_detector')
+        super().__init__(ifc.DAMAGE_DETECTOR)
         values = declare(self, parameters(DetectorConfig()), on_change=self.parameters_callback)
         self.detector = DamageDetector(self._config_from({}))
-        self.predictions = {}
-        self.waiting = []  # verdicts waiting for the adapter's answer: (future, deadline, msg)
+        self.predictions = {}  # behaviour id -> (gr, sigma), waiting for the outcome
+        self.outcomes = {}  # behaviour id -> outcome, waiting for the prediction
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
 
-        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
-        self.create_subscription(Float64MultiArray, '/sela/prediction', self.prediction_callback,
-                                 COMMAND_QOS)
-        self.create_subscription(Float64MultiArray, '/hexapod/behavior_outcome',
-                                 self.outcome_callback, OUTCOME_QOS)
-        self.adapt_client = self.create_client(Trigger, '/sela_adapter/adapt')
-        # Verdicts go out when the adapter answers (a done callback); this timer only
-        # catches an adapter that does not answer within ADAPT_TIMEOUT.
-        self.create_timer(0.25, self.flush_verdicts, clock=self.wall)
-        # Watch the other nodes' heartbeats: a silent node is reported on /diagnostics.
+        self.diag_pub = ifc.publisher(self, ifc.DIAGNOSTICS)
+        self.verdict_pub = ifc.publisher(self, ifc.VERDICT)
+        ifc.subscription(self, ifc.PREDICTION, self.prediction_callback)
+        ifc.subscription(self, ifc.OUTCOME, self.outcome_callback)
+        # Watch the other nodes' heartbeats: a silent node is reported on diagnostics.
         self.watch = SilenceWatch(values['heartbeat.nodes'], values['heartbeat.timeout'])
-        self.create_subscription(DiagnosticArray, '/diagnostics', self.diagnostics_callback,
-                                 STATE_QOS)
+        ifc.subscription(self, ifc.DIAGNOSTICS, self.diagnostics_callback)
         self.create_timer(0.5, self.check_heartbeats, clock=self.wall)
         add_heartbeat(self)
         self.get_logger().info(f'threshold {self.detector.config.threshold} m')
@@ -122,9 +115,11 @@ class DamageDetectorNode(Node):
         except conv.MessageError as exc:
             self.get_logger().error(f'ignored prediction: {exc}')
             return
-        self.predictions[behavior_id] = (gr, sigma)
-        while len(self.predictions) > 1000:
-            self.predictions.pop(next(iter(self.predictions)))
+        outcome = self.outcomes.pop(behavior_id, None)
+        if outcome is not None:
+            self._judge(outcome, gr, sigma)
+        else:
+            _keep(self.predictions, behavior_id, (gr, sigma))
 
     def outcome_callback(self, msg):
         try:
@@ -133,47 +128,36 @@ class DamageDetectorNode(Node):
             self.get_logger().error(f'ignored outcome: {exc}')
             return
         prediction = self.predictions.pop(outcome.behavior_id, None)
-        if prediction is None:
-            return  # no prediction: a command from someone else, nothing to compare with
-        verdict = self.detector.observe(prediction[0], outcome.generic_reward, prediction[1])
+        if prediction is not None:
+            self._judge(outcome, *prediction)
+        else:  # its prediction is on its way (or it was a command from someone else)
+            _keep(self.outcomes, outcome.behavior_id, outcome)
+
+    def _judge(self, outcome, predicted_gr, sigma):
+        verdict = self.detector.observe(predicted_gr, outcome.generic_reward, sigma)
+        threshold = self.detector.config.threshold
+        # The decision first, on its own channel: the adapter waits for it.
+        self.verdict_pub.publish(conv.verdict_to_msg(outcome.behavior_id, verdict, threshold))
         level = DiagnosticStatus.ERROR if verdict.fire else DiagnosticStatus.OK
         message = ('damage detected: adaptation requested' if verdict.fire
                    else 'prediction too uncertain to judge' if not verdict.judged
-                   else 'outcome as predicted' if verdict.error <= self.detector.config.threshold
+                   else 'outcome as predicted' if verdict.error <= threshold
                    else 'outcome off prediction')
-        out = conv.diagnostic_array(conv.diagnostic_status(
+        if verdict.fire:
+            self.get_logger().warn(f'damage detected on behaviour {outcome.behavior_id}: '
+                                   f'error {verdict.error:.3f} m > {threshold} m')
+        self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
             level, STATUS_NAME, message,
             {'behavior_id': outcome.behavior_id, 'error': f'{verdict.error:.6f}',
-             'mean_error': f'{verdict.mean_error:.6f}', 'sigma': f'{prediction[1]:.6f}',
-             'threshold': self.detector.config.threshold,
-             'detections': self.detector.detections}, hardware_id='hexapod'),
-            self.get_clock().now().to_msg())
-        if not verdict.fire:
-            self.diag_pub.publish(out)
-            return
-        self.get_logger().warn(f'damage detected on behaviour {outcome.behavior_id}: error '
-                               f'{verdict.error:.3f} m > {self.detector.config.threshold} m')
-        future = None
-        if self.adapt_client.service_is_ready():
-            future = self.adapt_client.call_async(Trigger.Request())
-            future.add_done_callback(lambda _: self.flush_verdicts())
-        else:
-            self.get_logger().error('/sela_adapter/adapt is not available')
-        deadline = self.wall.now().nanoseconds * 1e-9 + ADAPT_TIMEOUT
-        self.waiting.append((future, deadline, out))
+             'mean_error': f'{verdict.mean_error:.6f}', 'sigma': f'{sigma:.6f}',
+             'threshold': threshold, 'detections': self.detector.detections},
+            hardware_id='hexapod'), self.get_clock().now().to_msg()))
 
-    def flush_verdicts(self):
-        now = self.wall.now().nanoseconds * 1e-9
-        still = []
-        for future, deadline, msg in self.waiting:
-            if future is not None and not future.done() and now < deadline:
-                still.append((future, deadline, msg))
-                continue
-            answer = future.result() if future is not None and future.done() else None
-            msg.status[0].values.append(KeyValue(
-                key='adapt', value=answer.message if answer else 'no answer from the adapter'))
-            self.diag_pub.publish(msg)
-        self.waiting = still
+
+def _keep(unpaired, behavior_id, value):
+    unpaired[behavior_id] = value
+    while len(unpaired) > UNPAIRED_KEPT:
+        unpaired.pop(next(iter(unpaired)))
 
 
 def main(args=None):

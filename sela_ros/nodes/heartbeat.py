@@ -1,18 +1,18 @@
-"""Heartbeats on ``/diagnostics``: every node says it is alive; a watcher reports silence."""
+"""Heartbeats on ``diagnostics``: every node says it is alive; a watcher reports silence."""
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.clock import Clock, ClockType
 
+from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
-from sela_ros.nodes.qos import STATE_QOS
 
-SUFFIX = ': heartbeat'
+SUFFIX = ifc.HEARTBEAT_SUFFIX
 
 
 def add_heartbeat(node, period=1.0):
     """Publish ``<node name>: heartbeat`` (level OK) every ``period`` wall-clock seconds."""
-    pub = node.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
+    pub = ifc.publisher(node, ifc.DIAGNOSTICS)
     name = node.get_name() + SUFFIX
     started = time.monotonic()
 

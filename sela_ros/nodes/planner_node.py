@@ -1,30 +1,29 @@
 """The ``planner`` node: A* over an occupancy grid, the reward selection layer of SELA.
 
-Serves ``/planner/make_plan`` (nav_msgs/GetPlan); after each plan it publishes the path on
-``/planner/path`` and the waypoint the specialised reward is built on, ``planner.lookahead``
-metres along the path, on ``/sela/target`` (its header stamp is the stamp of the request's
-start pose, so the requester can pair them). The map is published once, latched, on
-``/planner/map``. A goal on ``/goal_pose`` is checked against the map and planned from the
-latest odometry, so a bad goal is reported as soon as it is sent.
+Serves ``~/make_plan`` (nav_msgs/GetPlan): the answer's ``plan`` is the path from the
+request's start up to and ending at the next waypoint, ``planner.lookahead`` metres along
+the path to the goal (or the goal itself when closer): the waypoint the specialised reward is
+built on is its last pose. An empty plan means no path (the reason goes to ``diagnostics``).
+After each plan the full path to the goal is published on ``~/path`` and the waypoint on
+``sela/target`` for observers. The map is published once, latched, on ``~/map``. A goal on
+``goal_pose`` is checked against the map and planned from the latest odometry, so a bad goal
+is reported as soon as it is sent.
 """
 import math
 
 import numpy as np
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PointStamped, PoseStamped
-from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
-from nav_msgs.msg import Odometry, Path
-from nav_msgs.srv import GetPlan
+from diagnostic_msgs.msg import DiagnosticStatus
+from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 from sela_ros.core.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
 from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
-from sela_ros.nodes.qos import LATCHED_QOS, STATE_QOS
 
 
 def grid_from_description(resolution, origin, width, height, obstacles):
@@ -75,6 +74,18 @@ def load_map_file(path):
                                  data['height'], data.get('obstacles', []))
 
 
+def path_up_to(path_xy, waypoint):
+    """The path's points before ``waypoint`` (a point on it), then the waypoint itself."""
+    path_xy = np.asarray(path_xy, dtype=float).reshape(-1, 2)
+    if len(path_xy) < 2:
+        return np.vstack([path_xy[:1], waypoint])
+    a, seg = path_xy[:-1], np.diff(path_xy, axis=0)
+    t = np.clip(np.sum((waypoint - a) * seg, axis=1) / np.maximum(np.sum(seg * seg, axis=1),
+                                                                 1e-18), 0.0, 1.0)
+    k = int(np.argmin(np.hypot(*(a + t[:, None] * seg - waypoint).T)))
+    return np.vstack([path_xy[:k + 1], waypoint])
+
+
 def _origin_rule(value):
     return None if len(value) == 2 else f'must be [x, y], got {list(value)}'
 
@@ -109,7 +120,7 @@ PARAMETERS = (
 
 class PlannerNode(Node):
     def __init__(self):
-        super().__init__('planner')
+        super().__init__(ifc.PLANNER)
         values = declare(self, PARAMETERS, on_change=self.parameters_callback)
         self.frame_id = values['frame_id']
         self.lookahead = values['planner.lookahead']
@@ -119,13 +130,13 @@ class PlannerNode(Node):
         self.pose = None
         self.goal = None
 
-        self.map_pub = self.create_publisher(OccupancyGridMsg, '/planner/map', LATCHED_QOS)
-        self.path_pub = self.create_publisher(Path, '/planner/path', LATCHED_QOS)
-        self.target_pub = self.create_publisher(PointStamped, '/sela/target', LATCHED_QOS)
-        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATE_QOS)
-        self.create_subscription(Odometry, '/hexapod/odom', self.odom_callback, STATE_QOS)
-        self.create_subscription(PoseStamped, '/goal_pose', self.goal_callback, LATCHED_QOS)
-        self.create_service(GetPlan, '/planner/make_plan', self.make_plan_callback)
+        self.map_pub = ifc.publisher(self, ifc.MAP)
+        self.path_pub = ifc.publisher(self, ifc.PATH)
+        self.target_pub = ifc.publisher(self, ifc.TARGET)
+        self.diag_pub = ifc.publisher(self, ifc.DIAGNOSTICS)
+        ifc.subscription(self, ifc.ODOM, self.odom_callback)
+        ifc.subscription(self, ifc.GOAL, self.goal_callback)
+        ifc.server(self, ifc.MAKE_PLAN, self.make_plan_callback)
         add_heartbeat(self)
         self.map_pub.publish(conv.occupancy_grid_to_msg(
             self.grid.occupied, self.grid.resolution, self.grid.origin, frame_id=self.frame_id))
@@ -194,24 +205,22 @@ class PlannerNode(Node):
                 goal = self.goal  # an empty goal means: the current /goal_pose
             else:
                 goal = conv.goal_from_pose_stamped(request.goal, self.frame_id)
-            path = self._plan(start, goal, request.start.header.stamp)
+            response.plan = self._plan(start, goal, request.start.header.stamp)
         except (conv.MessageError, PlanningError, ValueError) as exc:
             self._report(DiagnosticStatus.ERROR, f'make_plan failed: {exc}')
             response.plan = Path()
             response.plan.header.frame_id = self.frame_id
-            return response
-        response.plan = path
         return response
 
     def _plan(self, start, goal, stamp):
+        """Plan, publish the path and the target; returns the plan up to the waypoint."""
         path_xy = self.planner(start, goal)
         waypoint = next_waypoint(path_xy, start, self.lookahead)
-        # The target first: the adapter waits for it (paired by stamp), not for the path.
         self.target_pub.publish(conv.point_stamped(waypoint, stamp=stamp,
                                                    frame_id=self.frame_id))
-        path = conv.path_to_msg(path_xy, stamp=stamp, frame_id=self.frame_id)
-        self.path_pub.publish(path)
-        return path
+        self.path_pub.publish(conv.path_to_msg(path_xy, stamp=stamp, frame_id=self.frame_id))
+        return conv.path_to_msg(path_up_to(path_xy, waypoint), stamp=stamp,
+                                frame_id=self.frame_id)
 
     def _report(self, level, message):
         self.get_logger().error(message) if level >= DiagnosticStatus.ERROR else \

@@ -39,6 +39,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from sela_ros.core.archive import Archive, atomic_savez, make_metadata
+from sela_ros.core.geometry import wrap_angle
 
 CHECKPOINT_FORMAT_VERSION = 1
 VARIATIONS = ('iso_line', 'polynomial')
@@ -58,11 +59,6 @@ class EvaluationResult(NamedTuple):
     fitness: float
     descriptor: np.ndarray
     generic_reward: np.ndarray
-
-
-def wrap_angle(angle):
-    """Angle(s) wrapped to ``[-pi, pi)``."""
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def arc_fitness(generic_reward) -> np.ndarray:

@@ -109,78 +109,50 @@ def main(argv=None):
 def run_client(args, damage, out, procs):
     """The user's side of the mission: send the goal, follow the steps, record, summarise."""
     import rclpy
-    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-    from geometry_msgs.msg import PointStamped, PoseStamped
-    from nav_msgs.msg import OccupancyGrid, Odometry, Path
     from rclpy.node import Node
-    from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64, Float64MultiArray
 
     from sela_ros.nodes import conversions as conv
-    from sela_ros.nodes.adapter_node import MISSION_STATUS
-    from sela_ros.nodes.damage_detector_node import STATUS_NAME as DETECTOR_STATUS
-    from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+    from sela_ros.nodes import interface as ifc
+    from sela_ros.tools.mission_client import MissionClient
     from sela_ros.tools.recording import McapRecorder
-    from sela_ros.tools.ros_env import wait_for_publishers
 
-    topics = {'/clock': Clock, '/hexapod/odom': Odometry, '/hexapod/joint_states': JointState,
-              '/hexapod/behavior': Float64MultiArray,
-              '/hexapod/behavior_outcome': Float64MultiArray,
-              '/sela/prediction': Float64MultiArray, '/sela/reward': Float64,
-              '/sela/target': PointStamped, '/goal_pose': PoseStamped, '/planner/path': Path,
-              '/planner/map': OccupancyGrid, '/diagnostics': DiagnosticArray}
-    qos = {'/goal_pose': LATCHED_QOS, '/planner/path': LATCHED_QOS, '/planner/map': LATCHED_QOS,
-           '/sela/target': LATCHED_QOS, '/hexapod/behavior_outcome': OUTCOME_QOS,
-           '/hexapod/behavior': COMMAND_QOS, '/sela/prediction': COMMAND_QOS,
-           '/sela/reward': COMMAND_QOS}
+    recorded = (ifc.CLOCK, ifc.ODOM, ifc.JOINT_STATES, ifc.BEHAVIOR, ifc.OUTCOME,
+                ifc.PREDICTION, ifc.REWARD, ifc.TARGET, ifc.GOAL, ifc.PATH, ifc.MAP,
+                ifc.DIAGNOSTICS, ifc.VERDICT)
     rclpy.init()
     node = Node('sela_demo')
-    steps, trajectory, detections = [], [], []
-    state = {'done': None, 'final': None}
+    trajectory = []
+    spin_once = lambda timeout: rclpy.spin_once(node, timeout_sec=timeout)  # noqa: E731
+    mission = MissionClient(node, spin_once)
+    printed = {'steps': 0, 'detections': 0}
 
-    def on_diag(msg):
-        for status in msg.status:
-            values = {kv.key: kv.value for kv in status.values}
-            if status.name == MISSION_STATUS and 'step' in values:
-                steps.append(values)
-                pose = [float(v) for v in values['pose'].split()]
-                wp = [float(v) for v in values['waypoint'].split()]
-                pred = [float(v) for v in values['predicted_gr'].split()]
-                obs = [float(v) for v in values['observed_gr'].split()]
-                print(f"step {int(values['step']):3d}  pose ({pose[0]:+.2f}, {pose[1]:+.2f}, "
-                      f"{math.degrees(pose[2]):+6.1f} deg)  waypoint ({wp[0]:+.2f}, {wp[1]:+.2f})"
-                      f"  predicted ({pred[0]:+.3f}, {pred[1]:+.3f}, {pred[2]:+.2f})"
-                      f"  observed ({obs[0]:+.3f}, {obs[1]:+.3f}, {obs[2]:+.2f})"
-                      f"  reward {float(values['reward']):+.3f}  "
-                      f"{'ADAPTING' if values['adapting'] == 'True' else 'trusting map'}",
-                      flush=True)
-            elif status.name == MISSION_STATUS and 'success' in values:
-                state['done'] = values['success'] == 'True'
-                state['final'] = values
-            elif status.name == DETECTOR_STATUS and status.level == DiagnosticStatus.ERROR:
-                detections.append(values)
-                print(f"        damage detector: error {float(values['error']):.3f} m > "
-                      f"{values['threshold']} m -> {values.get('adapt', 'adapt')}", flush=True)
+    def print_progress():
+        for s in mission.steps[printed['steps']:]:
+            pose, wp, pred, obs = s.pose, s.waypoint, s.predicted_gr, s.observed_gr
+            print(f"step {s.step:3d}  pose ({pose[0]:+.2f}, {pose[1]:+.2f}, "
+                  f"{math.degrees(pose[2]):+6.1f} deg)  waypoint ({wp[0]:+.2f}, {wp[1]:+.2f})"
+                  f"  predicted ({pred[0]:+.3f}, {pred[1]:+.3f}, {pred[2]:+.2f})"
+                  f"  observed ({obs[0]:+.3f}, {obs[1]:+.3f}, {obs[2]:+.2f})"
+                  f"  reward {s.reward:+.3f}  "
+                  f"{'ADAPTING' if s.adapting else 'trusting map'}", flush=True)
+        for d in mission.detections[printed['detections']:]:
+            print(f"        damage detector: error {d.error:.3f} m > "
+                  f"{d.threshold} m -> {d.adapt}", flush=True)
+        printed.update(steps=len(mission.steps), detections=len(mission.detections))
 
     def on_odom(msg):
         pose = conv.pose_from_odometry(msg)
         trajectory.append([conv.time_from_msg(msg.header.stamp), *pose.tolist()])
 
-    node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, STATE_QOS)
-    node.create_subscription(Odometry, '/hexapod/odom', on_odom, STATE_QOS)
-    recorder = McapRecorder(node, str(out / 'mission.mcap'), topics,
-                            qos_for=lambda t: qos.get(t, STATE_QOS))
-    goal_pub = node.create_publisher(PoseStamped, '/goal_pose', LATCHED_QOS)
+    ifc.subscription(node, ifc.ODOM, on_odom)
+    recorder = McapRecorder(node, str(out / 'mission.mcap'),
+                            {t.root_name: t.type for t in recorded},
+                            qos_for={t.root_name: t.qos for t in recorded}.get)
     start = time.monotonic()
     try:
-        # Volatile topics drop what is published before discovery: hear the nodes first
-        # (the goal itself is latched, the planner and the adapter would get it anyway).
-        wait_for_publishers(node, lambda t: rclpy.spin_once(node, timeout_sec=t),
-                            ('/diagnostics', '/hexapod/odom', '/hexapod/behavior_outcome'))
-        goal_pub.publish(conv.pose_stamped(args.goal, frame_id='odom'))
-        while state['done'] is None and time.monotonic() - start < args.timeout:
-            rclpy.spin_once(node, timeout_sec=0.1)
+        mission.go_to_pose(*args.goal, timeout=args.timeout)
+        while not mission.is_task_complete() and time.monotonic() - start < args.timeout:
+            print_progress()
             dead = [n for n, p in procs.items() if p.poll() is not None]
             if dead:
                 print(f'sela-demo: node(s) {dead} exited; see their logs', file=sys.stderr)
@@ -188,16 +160,21 @@ def run_client(args, damage, out, procs):
         settle = time.monotonic() + 0.5  # the state after the last gait
         while time.monotonic() < settle:
             rclpy.spin_once(node, timeout_sec=0.05)
+        print_progress()
     finally:
         recorder.close()
         node.destroy_node()
         rclpy.try_shutdown()
+    result = mission.get_result()
+    steps = [s.values for s in mission.steps]
+    detections = mission.detections
     wall = time.monotonic() - start
     final_true = trajectory[-1][1:3] if trajectory else None
     summary = {
-        'success': bool(state['done']), 'damage': damage, 'goal': list(args.goal),
+        'success': bool(result and result.success), 'damage': damage,
+        'goal': list(args.goal),
         'seed': args.seed, 'steps': len(steps),
-        'adaptations': int(state['final']['adaptations']) if state['final'] else None,
+        'adaptations': result.adaptations if result else None,
         'learning_started_at_step': next((int(s['step']) for s in steps
                                           if s['adapting'] == 'True'), None),
         'detections': len(detections),

@@ -1,0 +1,394 @@
+"""The mission's step cycle as plain Python: events in, commands out. ROS-free.
+
+One step: plan (the reward selection layer gives the waypoint) -> ask (SELA picks a gait)
+-> command (the gait and its prediction go out) -> outcome (its observed generic reward
+comes back; learnt while adapting) -> verdict (the damage detector judges it; a detection
+starts adaptation, or restarts it from scratch) -> the next step. Falls, resets, time-outs,
+early or late adaptation requests and resuming after a restart are part of the cycle.
+
+:class:`MissionStepper` never waits and never reads a clock: its driver passes the time
+with each event (:meth:`MissionStepper.handle`) and carries out the commands it returns
+(events and commands: :mod:`sela_ros.core.stepper_io`). The ``sela_adapter`` node drives it
+from DDS messages, :func:`sela_ros.core.mission.run_mission` in process against the
+simulator, the tests with a fake clock: the DDS mission takes the in-process mission's gaits
+because both are this code.
+
+The pose a step starts from is the robot's current one: the end pose of the latest outcome,
+or odometry when there is none (start, after a reset or a restart), or when odometry at
+least as new as that outcome puts the robot more than ``pose_tolerance`` away from it.
+A goal is reached when that pose is within ``goal.eps`` of it.
+"""
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from sela_ros.core.learning import MissionLogic
+from sela_ros.core.mission_status import detection_status, goal_status, mission_status
+from sela_ros.core.persistence import mission_snapshot, restore_mission
+from sela_ros.core.stepper_io import (
+    AdaptRequested,
+    ClearRequested,
+    GoalReceived,
+    HoldChanged,
+    Level,
+    OutcomeReceived,
+    PendingStep,
+    PlanReceived,
+    PoseObserved,
+    PublishReward,
+    PublishStatus,
+    Reply,
+    Report,
+    RequestPlan,
+    RequestReset,
+    ResetDone,
+    SaveState,
+    SendGait,
+    State,
+    StepperConfig,
+    Tick,
+    VerdictReceived,
+)
+
+
+class MissionStepper:
+    """The step cycle of one robot: feed it events, carry out the commands it returns.
+
+    Args:
+        sela: the SELA learner (its goal is set by :class:`GoalReceived`).
+        config: :class:`StepperConfig`.
+    """
+
+    def __init__(self, sela, config=None):
+        self.config = config or StepperConfig()
+        self.logic = MissionLogic(sela, self.config.adapt_on_start, self.config.reset_on_fall)
+        self.state = State.IDLE
+        self.goal = None
+        self.steps = 0
+        self.failed_steps = 0
+        self.result = None  # True / False once DONE
+        self.next_id = 1
+        self.pending = None  # PendingStep
+        self.pose = self.pose_stamp = None  # the latest outcome's end pose, and its time
+        self.odom = self.odom_stamp = None
+        self.hold = None  # why no gait may be sent ('' : silently), None: go
+        self.reset_needed = False
+        self.adapt_after_outcome = False
+        self.resume = None  # a restored mission waiting to see where the robot is
+        self._plan = None  # the plan asked for: {'step', 'start', 'waypoint', 'refused', 't'}
+        self._verdicts = {}  # behaviour id -> verdict heard before the outcome
+        self.last_id = None  # id of the latest outcome processed
+        self._deadline = None  # of the reset
+        self._handlers = {
+            GoalReceived: self._on_goal, PoseObserved: self._on_pose,
+            PlanReceived: self._on_plan, OutcomeReceived: self._on_outcome,
+            VerdictReceived: self._on_verdict, AdaptRequested: self._on_adapt,
+            ClearRequested: self._on_clear, ResetDone: self._on_reset_done,
+            HoldChanged: self._on_hold, Tick: self._on_tick}
+
+    @property
+    def sela(self):
+        return self.logic.sela
+
+    def configure(self, **changes):
+        """Change timings or ``max_steps`` (the rest is fixed at construction)."""
+        self.config = replace(self.config, **changes)
+
+    def current_pose(self):
+        return self.pose if self.pose is not None else self.odom
+
+    # --- events --------------------------------------------------------------------------
+
+    def handle(self, event, now):
+        """Apply ``event`` observed at time ``now`` (s); returns the commands, in order."""
+        handler = self._handlers.get(type(event))
+        if handler is None:
+            raise TypeError(f'not a stepper event: {event!r}')
+        out = handler(event, now)
+        if self.state is State.READY:
+            out += self._start_step(now)
+        return out
+
+    def _on_goal(self, event, now):
+        goal = np.asarray(event.goal, dtype=float).reshape(-1)[:2]
+        if (self.goal is not None and np.array_equal(goal, self.goal)
+                and self.state not in (State.IDLE, State.DONE)):
+            return [goal_status(self, 'goal already in progress')]  # it goes on
+        self.sela.set_goal(goal)
+        self.goal = goal
+        self._plan = None
+        if self.resume is not None and self.state is not State.EXECUTING:
+            self.resume = self.pose = None  # a new mission, from where the robot is
+        self.steps = 0
+        self.result = None
+        if self.state in (State.IDLE, State.DONE):
+            self.state = State.READY
+        out = [Report(Level.OK, f'new goal ({goal[0]:.2f}, {goal[1]:.2f})'),
+               goal_status(self, 'new goal'), self._save()]
+        if self.hold:
+            out.append(Report(Level.ERROR, self.hold))
+        return out
+
+    def _on_pose(self, event, now):
+        pose = np.asarray(event.pose, dtype=float)
+        if (event.stamp is not None and self.odom_stamp is not None
+                and event.stamp < self.odom_stamp and self.pose_stamp is not None):
+            self.pose_stamp = -math.inf  # the simulator's clock went back: it restarted
+        self.odom, self.odom_stamp = pose, event.stamp
+        if self.resume is not None and self.state is not State.EXECUTING:
+            return self._check_resume(pose)
+        moved = (self.pose is not None and event.stamp is not None
+                 and self.pose_stamp is not None and event.stamp >= self.pose_stamp
+                 and self.state in (State.READY, State.VERDICT, State.IDLE, State.DONE)
+                 and _distance(pose, self.pose) > self.config.pose_tolerance)
+        if not moved:
+            return []
+        distance = _distance(pose, self.pose)
+        self.pose = None
+        return [Report(Level.WARN, f'odometry puts the robot {distance:.2f} m from its '
+                       'last observed pose: the next step starts from odometry')]
+
+    def _on_plan(self, event, now):
+        plan = self._plan
+        if plan is None or plan['step'] != event.step or not np.array_equal(
+                plan['start'], np.asarray(event.start, dtype=float)):
+            return []  # an answer to an older request
+        if event.waypoint is None:
+            plan['refused'] = event.reason or 'no path'
+        else:
+            plan['waypoint'] = np.asarray(event.waypoint, dtype=float).reshape(-1)[:2]
+        if self.state is State.PLANNING and self.pending.step == plan['step']:
+            return self._plan_ready(now)
+        return []
+
+    def _on_outcome(self, event, now):
+        p = self.pending
+        if self.state is not State.EXECUTING or event.behavior_id != p.behavior_id:
+            if event.behavior_id >= self.next_id:
+                return [Report(Level.WARN, f'ignored outcome {event.behavior_id}: it pairs '
+                               'with no command of this adapter')]
+            return []
+        self.resume = None
+        p.t_outcome = now
+        self.pose = np.asarray(event.end_pose, dtype=float)
+        self.pose_stamp = event.stamp
+        self.last_id = p.behavior_id
+        self.reset_needed = bool(event.fallen) and self.config.reset_on_fall
+        out = []
+        # The next step's plan depends only on the pose: ask now, the planner works while
+        # this step is learnt and judged.
+        if (self.goal is not None and not self.sela.goal_reached(self.pose)
+                and self.steps < self.config.max_steps and not self.reset_needed):
+            out.append(self._ask_plan(self.steps + 1, self.pose, now))
+        p.record = self.logic.outcome(p.decision, p.pose, event.generic_reward,
+                                      fallen=event.fallen, true_pose=event.true_pose)
+        if event.fallen:
+            self.failed_steps += 1
+            out.append(Report(Level.ERROR, f'step {self.steps} failed: the robot fell or '
+                              'flipped' + ('; resetting it through /sim_bridge/reset'
+                                           if self.reset_needed else '')))
+        reward = -float(np.linalg.norm(p.waypoint - self.pose[:2]))
+        out += [PublishReward(reward), PublishStatus(Level.OK, 'step', self.status(reward))]
+        self.state = State.VERDICT
+        p.deadline = now + self.config.detector_timeout
+        if self.adapt_after_outcome:
+            self.adapt_after_outcome = False
+            out += self._adapt()[1]
+        else:
+            out.append(self._save())
+        if p.behavior_id in self._verdicts:
+            out += self._verdict(self._verdicts.pop(p.behavior_id))
+        return out
+
+    def _on_verdict(self, event, now):
+        if self.state is State.VERDICT and event.behavior_id == self.pending.behavior_id:
+            return self._verdict(event)
+        if self.state is State.EXECUTING and event.behavior_id == self.pending.behavior_id:
+            self._verdicts[event.behavior_id] = event  # heard before the outcome
+            return []
+        if event.behavior_id == self.last_id and event.fire:
+            # Late: the step went on without it. Adapt as an early call would.
+            self.last_id = None
+            out = self._on_adapt(AdaptRequested(), now)
+            return out[:-1] + [detection_status(self, event, out[-1].message)]
+        return []  # judged already, or an older command (a restarted detector's replay)
+
+    def _verdict(self, event):
+        self.last_id = None  # judged: a replay of this verdict changes nothing
+        self.state = State.READY
+        if not event.fire:
+            return []
+        message, out = self._adapt()
+        return out + [detection_status(self, event, message)]
+
+    def _on_adapt(self, event, now):
+        if self.state is State.EXECUTING:
+            # Adapt from the outcome on its way, as soon as it is processed.
+            self.adapt_after_outcome = True
+            message = ('adaptation will ' + ('restart' if self.logic.adapting else 'start')
+                       + f' from the outcome of command {self.pending.behavior_id}')
+            return [Report(Level.WARN, message), Reply(True, message)]
+        message, out = self._adapt()
+        return out + [Reply(True, message)]
+
+    def _adapt(self):
+        restarting = self.logic.adapting
+        self.logic.adapt()
+        message = (('adaptation restarted from scratch' if restarting
+                    else 'adaptation started')
+                   + f' ({len(self.sela.observations[0])} observation(s))')
+        return message, [Report(Level.WARN, message), self._save()]
+
+    def _on_clear(self, event, now):
+        forgotten = len(self.sela.observations[0])
+        self.logic.forget(self.config.adapt_on_start)
+        message = f'forgot {forgotten} observation(s): back to the intact map'
+        return [self._save(), Report(Level.WARN, message), Reply(True, message)]
+
+    def _on_reset_done(self, event, now):
+        if self.state is not State.RESETTING:
+            return []
+        self.reset_needed = False
+        self.state = State.READY
+        if not event.success:
+            return [Report(Level.ERROR, f'reset refused: {event.message or "no answer"}; '
+                           'going on from where the robot lies'), self._save()]
+        # The next step starts from the pose odometry reports after the reset.
+        self.pose = self.odom = None
+        self._plan = None
+        return [Report(Level.WARN, f'reset: {event.message}'), self._save()]
+
+    def _on_hold(self, event, now):
+        self.hold = event.reason
+        return [Report(Level.ERROR, event.reason)] if event.reason else []
+
+    def _on_tick(self, event, now):
+        p = self.pending
+        if self.state is State.PLANNING and now > p.deadline:
+            self.steps -= 1
+            self.state = State.READY
+            self._plan = None
+            return [Report(Level.ERROR, 'planner did not answer; retrying')]
+        if self.state is State.EXECUTING and now > p.deadline:
+            if self.resume is not None and self.odom is not None and _distance(
+                    self.odom, p.pose) > self.config.pose_tolerance:
+                return self._drop_mission(self.odom, p.pose)
+            p.deadline = now + self.config.outcome_timeout
+            return [Report(Level.ERROR, f'no outcome for command {p.behavior_id} within '
+                           f'{self.config.outcome_timeout} s; sending it again'),
+                    SendGait(p.behavior_id, p.decision.index, p.decision.predicted_gr,
+                             self.logic.prediction_sigma(p.decision), resend=True)]
+        if self.state is State.VERDICT and now > p.deadline:
+            self.state = State.READY
+            return [Report(Level.WARN, f'no verdict on command {p.behavior_id} within '
+                           f'{self.config.detector_timeout} s: going on')]
+        if self.state is State.RESETTING and now > self._deadline:
+            self.reset_needed = False
+            self.state = State.READY
+            return [Report(Level.ERROR, '/sim_bridge/reset did not answer: going on from '
+                           'where the robot lies')]
+        return []
+
+    # --- the cycle -----------------------------------------------------------------------
+
+    def _start_step(self, now):
+        if self.hold is not None or self.resume is not None or self.goal is None:
+            return []
+        if self.reset_needed:
+            self.state = State.RESETTING
+            self._deadline = now + self.config.outcome_timeout
+            return [Report(Level.WARN, 'robot fell: calling /sim_bridge/reset'), RequestReset()]
+        pose = self.current_pose()
+        if pose is None:
+            return []
+        if self.sela.goal_reached(pose):
+            return self._finish(True, pose)
+        if self.steps >= self.config.max_steps:
+            return self._finish(False, pose)
+        out = []
+        plan = self._plan
+        if plan is None or plan['step'] != self.steps + 1 or not np.array_equal(
+                plan['start'], pose) or plan['refused']:
+            out.append(self._ask_plan(self.steps + 1, pose, now))
+        self.steps += 1
+        self.pending = PendingStep(step=self.steps, pose=pose.copy(), t_start=self._plan['t'],
+                                   deadline=now + self.config.plan_timeout)
+        self.state = State.PLANNING
+        return out + self._plan_ready(now)
+
+    def _ask_plan(self, step, pose, now):
+        self._plan = {'step': step, 'start': np.array(pose, dtype=float), 'waypoint': None,
+                      'refused': None, 't': now}
+        return RequestPlan(step, self._plan['start'].copy(), self.goal.copy())
+
+    def _plan_ready(self, now):
+        plan, p = self._plan, self.pending
+        if plan['refused']:
+            self.steps -= 1
+            self.state = State.IDLE  # a goal that cannot be planned is not retried
+            return [Report(Level.ERROR, f"no plan to the goal ({plan['refused']}); waiting for "
+                           'a new goal'), self._save()]
+        if plan['waypoint'] is None:
+            return []
+        self._plan = None
+        p.waypoint = plan['waypoint']
+        p.decision = self.logic.decide(p.pose, p.waypoint)
+        p.behavior_id = self.next_id
+        self.next_id += 1
+        p.t_sent = now
+        p.deadline = now + self.config.outcome_timeout
+        self.state = State.EXECUTING
+        d = p.decision
+        return [SendGait(p.behavior_id, int(d.index), d.predicted_gr,
+                         self.logic.prediction_sigma(d)), self._save()]
+
+    def _finish(self, success, pose):
+        self.state = State.DONE
+        self.result = success
+        message = ('goal reached' if success
+                   else f'goal not reached in {self.config.max_steps} steps')
+        return [Report(Level.OK, f'{message} after {self.steps} steps, pose '
+                       f'({pose[0]:.2f}, {pose[1]:.2f})'),
+                PublishStatus(Level.OK if success else Level.ERROR, message, self.status()),
+                self._save()]
+
+    def _drop_mission(self, pose, saved):
+        message = (f'mission to ({self.goal[0]:.2f}, {self.goal[1]:.2f}) dropped: the robot is '
+                   f'{_distance(pose, saved):.2f} m from where the state file puts it '
+                   f'(tolerance {self.config.pose_tolerance} m); send the goal again')
+        self.resume = self.pending = None
+        self.state = State.IDLE
+        self.reset_needed = False
+        return [Report(Level.ERROR, message), self._save()]
+
+    def _check_resume(self, pose):
+        saved = self.resume
+        if _distance(pose, saved) > self.config.pose_tolerance:
+            return self._drop_mission(pose, saved)
+        self.resume = None
+        self.pose = None  # plan from where the robot is
+        return [Report(Level.WARN, f'mission resumed at step {self.steps}: the robot is '
+                       f'{_distance(pose, saved):.3f} m from where the state file puts it')]
+
+    # --- status and persistence ----------------------------------------------------------
+
+    def status(self, reward=None):
+        """The mission status as text values (see :mod:`sela_ros.core.mission_status`)."""
+        return mission_status(self, reward)
+
+    def _save(self):
+        return SaveState(self.snapshot())
+
+    def snapshot(self):
+        """What was learned and where the mission stands, as JSON-able values."""
+        return mission_snapshot(self)
+
+    def restore(self, snapshot, now):
+        """Take back a :meth:`snapshot` (see :func:`~sela_ros.core.persistence.
+        restore_mission`); returns the commands (reports) it gives."""
+        return restore_mission(self, snapshot, now)
+
+
+def _distance(a, b):
+    return float(np.hypot(a[0] - b[0], a[1] - b[1]))

@@ -1,0 +1,208 @@
+"""What the mission stepper takes (events) and gives (commands), and its state. ROS-free.
+
+The driver of a :class:`sela_ros.core.stepper.MissionStepper` (the ``sela_adapter`` node,
+:func:`sela_ros.core.mission.run_mission`, a test) turns what it observes into the events
+below and carries out the commands the stepper returns. Poses are ``(x, y, yaw)`` in the
+odom frame, times in seconds.
+"""
+import enum
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from sela_ros.core.sela import Decision
+
+# --- events (what the driver observed) -----------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GoalReceived:
+    goal: tuple  # (x, y) in the odom frame
+
+
+@dataclass(frozen=True)
+class PoseObserved:
+    pose: tuple  # (x, y, yaw): odometry
+    stamp: float = None  # its time (s, the simulator's clock); None: unknown
+
+
+@dataclass(frozen=True)
+class PlanReceived:
+    step: int  # the ``step`` of the RequestPlan it answers
+    start: tuple  # the ``start`` of that request
+    waypoint: tuple = None  # None: no path (``reason`` says why)
+    reason: str = ''
+
+
+@dataclass(frozen=True)
+class OutcomeReceived:
+    behavior_id: int
+    generic_reward: tuple  # observed (dx, dy, dyaw)
+    end_pose: tuple  # observed (x, y, yaw) after the gait
+    fallen: bool = False
+    stamp: float = None  # the simulator's time at the end of the gait
+    true_pose: tuple = None  # in process only: what really happened (for the record)
+
+
+@dataclass(frozen=True)
+class VerdictReceived:
+    behavior_id: int
+    fire: bool  # damage detected: adapt
+    error: float = float('nan')  # the prediction error (m), for the record
+    threshold: float = float('nan')  # the detector's, for the record
+
+
+@dataclass(frozen=True)
+class AdaptRequested:
+    """A user (``~/adapt``) asks to start or restart adaptation."""
+
+
+@dataclass(frozen=True)
+class ClearRequested:
+    """A user (``~/clear``) asks to forget what was learned."""
+
+
+@dataclass(frozen=True)
+class ResetDone:
+    success: bool
+    message: str = ''
+
+
+@dataclass(frozen=True)
+class HoldChanged:
+    """No gait may be sent while ``reason`` is not None (e.g. the archive does not match the
+    simulator); '' holds silently (a check in progress)."""
+
+    reason: str = None
+
+
+@dataclass(frozen=True)
+class Tick:
+    """Time passes: catches time-outs."""
+
+
+# --- commands (what the driver must do) ----------------------------------------------------
+
+class Level(enum.IntEnum):
+    """Severity, with diagnostic_msgs/DiagnosticStatus's values."""
+
+    OK = 0
+    WARN = 1
+    ERROR = 2
+
+
+@dataclass(frozen=True)
+class RequestPlan:
+    step: int
+    start: np.ndarray  # (x, y, yaw)
+    goal: np.ndarray  # (x, y)
+
+
+@dataclass(frozen=True)
+class SendGait:
+    behavior_id: int
+    index: int  # of the archive's behaviour
+    predicted_gr: np.ndarray
+    sigma: float  # how unsure the prediction is (0 while the map is trusted)
+    resend: bool = False  # the same command again (its outcome never came)
+
+
+@dataclass(frozen=True)
+class RequestReset:
+    """Put the fallen robot back at the start (``sim_bridge/reset``)."""
+
+
+@dataclass(frozen=True)
+class PublishReward:
+    value: float  # the specialised reward observed: -||waypoint - end xy||
+
+
+@dataclass(frozen=True)
+class PublishStatus:
+    level: Level
+    message: str
+    values: dict  # str -> str: the mission status (see :meth:`MissionStepper.status`)
+
+
+@dataclass(frozen=True)
+class Report:
+    """Say it: in the log, and on diagnostics when ``level`` is ERROR."""
+
+    level: Level
+    message: str
+
+
+@dataclass(frozen=True)
+class Reply:
+    """The answer to an AdaptRequested or ClearRequested."""
+
+    success: bool
+    message: str
+
+
+@dataclass(frozen=True)
+class SaveState:
+    """Write :meth:`MissionStepper.snapshot` (taken now) to the state file."""
+
+    snapshot: dict
+
+
+class State(enum.Enum):
+    IDLE = 'idle'  # no goal
+    READY = 'ready'  # a goal: the next step starts once there is a pose and no hold
+    PLANNING = 'planning'  # waiting for the step's waypoint
+    EXECUTING = 'executing'  # gait sent, waiting for its outcome
+    VERDICT = 'verdict'  # outcome processed, waiting for the detector's verdict on it
+    RESETTING = 'resetting'  # the robot fell: waiting for the reset's answer
+    DONE = 'done'  # goal reached, or max_steps spent
+
+
+@dataclass(frozen=True)
+class StepperConfig:
+    """Timings (s) and rules of the step cycle (the ``sela_adapter`` parameters)."""
+
+    max_steps: int = 100
+    outcome_timeout: float = 10.0  # then the same command is sent again
+    detector_timeout: float = 2.0  # then the next step starts without the verdict
+    plan_timeout: float = 10.0  # then the plan is asked again
+    adapt_on_start: bool = False
+    reset_on_fall: bool = False
+    pose_tolerance: float = 0.1  # m: odometry this far from the held pose replaces it
+
+
+@dataclass
+class StepRecord:
+    """One mission step, as printed by the demo and stored in its summary."""
+
+    step: int
+    behavior_index: int
+    pose: list
+    waypoint: list
+    predicted_gr: list
+    observed_gr: list
+    reward: float
+    sigma: float
+    adapting: bool
+    error: float = float('nan')
+    detected: bool = False
+    fallen: bool = False
+    true_pose: list = None
+
+    def to_dict(self):
+        return asdict(self)
+
+
+@dataclass
+class PendingStep:
+    """The step in flight: filled in as it goes through the cycle."""
+
+    step: int
+    pose: np.ndarray  # where it starts
+    t_start: float
+    deadline: float
+    waypoint: np.ndarray = None
+    decision: Decision = None
+    behavior_id: int = None
+    t_sent: float = None
+    t_outcome: float = None
+    record: StepRecord = None

@@ -1,0 +1,52 @@
+"""The ``sela_adapter`` node's parameters: names, defaults, descriptions, ranges, and what
+they configure (SELA and the mission stepper). Declared through :func:`params.declare`."""
+from sela_ros.core.stepper_io import StepperConfig
+from sela_ros.nodes import interface as ifc
+from sela_ros.nodes.params import Spec
+
+PARAMETERS = (
+    Spec('archive', '', "the MAP-Elites archive (.npz); '' = the one shipped with the package; "
+         'can change between steps'),
+    Spec('gp.kernel.sigma', 0.1, 'kernel length on normalised descriptors', low=1e-6,
+         high=100.0, read_only=True),
+    Spec('gp.noise', 0.001, 'GP noise variance', low=0.0, high=100.0, read_only=True),
+    Spec('acquisition.ucb.alpha', 0.05, 'UCB exploration weight', low=0.0, high=100.0,
+         read_only=True),
+    Spec('goal.eps', 0.1, 'the goal is reached within this distance', low=1e-4, high=100.0,
+         unit=' m', read_only=True),
+    Spec('fall.risk.threshold', 0.3, 'risk of falling accepted: gaits predicted riskier are '
+         'not tried (1: no avoidance)', low=0.0, high=1.0, read_only=True),
+    Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
+    Spec('detector_timeout', 2.0, "wall time to wait for the detector's verdict on an outcome",
+         low=0.001, high=3600.0, unit=' s'),
+    Spec('outcome_timeout', 10.0, 'wall time to wait for the outcome of a command before '
+         'sending it again', low=0.001, high=3600.0, unit=' s'),
+    Spec('adapt_on_start', False, 'learn from the first step, without waiting for the '
+         'detector', read_only=True),
+    Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
+    Spec('state_file', '', "where learning is saved after every step ('' = "
+         '~/.ros/sela_ros/sela_adapter_state.json)', read_only=True),
+    Spec('resume', True, 'read the state file at start-up (lifelong learning)', read_only=True),
+    Spec('reset_on_fall', True, 'after a step that ends fallen, call sim_bridge/reset',
+         read_only=True),
+    Spec('simulator_node', ifc.SIM_BRIDGE, "whose sim.dt and sim.gait_duration the archive "
+         "must match ('' on a real robot: no check)", read_only=True),
+)
+SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
+             'fall.risk.threshold')
+#: Stepper settings, and the type each is read as (changeable at run time: the timings).
+STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
+                'adapt_on_start': bool, 'reset_on_fall': bool}
+
+
+def sela_config(values):
+    return {k: values[k] for k in SELA_KEYS}
+
+
+def stepper_config(values):
+    return StepperConfig(**{k: t(values[k]) for k, t in STEPPER_KEYS.items()})
+
+
+def stepper_change(name, value):
+    """``{field: value}`` for :meth:`MissionStepper.configure` ({} if not a stepper's)."""
+    return {name: STEPPER_KEYS[name](value)} if name in STEPPER_KEYS else {}

@@ -1,0 +1,168 @@
+"""``MissionClient``: send a goal to a sela_ros stack and follow its mission.
+
+In the spirit of nav2_simple_commander's ``BasicNavigator``: :meth:`MissionClient.go_to_pose`,
+:meth:`~MissionClient.is_task_complete`, :meth:`~MissionClient.get_feedback`,
+:meth:`~MissionClient.get_result`, and a ``namespace`` argument to drive a stack started
+under a namespace. The demo, the tests and the benchmarks use it; it is the one reader of
+the adapter's mission status (``diagnostics``, name ``sela_adapter: mission``).
+
+It runs on a node its caller owns (and spins), so that the caller can record or watch other
+topics on the same node: pass ``spin_once(timeout_sec)``.
+"""
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import interface as ifc
+
+
+@dataclass
+class StepFeedback:
+    """One step of the mission, as the adapter reported it."""
+
+    step: int
+    behavior_id: int
+    behavior_index: int
+    pose: np.ndarray  # where the step started (x, y, yaw)
+    waypoint: np.ndarray
+    predicted_gr: np.ndarray
+    observed_gr: np.ndarray
+    reward: float
+    end_pose: np.ndarray
+    adapting: bool
+    adaptations: int
+    fallen: bool
+    failed_steps: int
+    decide_ms: float
+    execute_ms: float
+    values: dict = field(repr=False)  # the status as sent (text)
+
+    @classmethod
+    def from_values(cls, v):
+        vector = lambda key: np.array(v[key].split(), dtype=float)  # noqa: E731
+        return cls(step=int(v['step']), behavior_id=int(v['behavior_id']),
+                   behavior_index=int(v['behavior_index']), pose=vector('pose'),
+                   waypoint=vector('waypoint'), predicted_gr=vector('predicted_gr'),
+                   observed_gr=vector('observed_gr'), reward=float(v['reward']),
+                   end_pose=vector('end_pose'), adapting=v['adapting'] == 'True',
+                   adaptations=int(v['adaptations']), fallen=v['fallen'] == 'True',
+                   failed_steps=int(v['failed_steps']), decide_ms=float(v['decide_ms']),
+                   execute_ms=float(v['execute_ms']), values=dict(v))
+
+
+@dataclass
+class Detection:
+    """The damage detector fired and the adapter (re)started adaptation."""
+
+    behavior_id: int
+    error: float
+    threshold: str
+    adapt: str  # the adapter's words
+
+
+@dataclass
+class MissionResult:
+    success: bool
+    steps: int
+    adaptations: int
+    message: str
+    values: dict = field(repr=False)
+
+
+class MissionClient:
+    """Args:
+        node: an rclpy node (the caller spins it through ``spin_once``).
+        spin_once: ``spin_once(timeout_sec)`` of the node's executor.
+        namespace: the stack's namespace ('' : the node's own).
+    """
+
+    def __init__(self, node, spin_once, namespace=''):
+        self.node = node
+        self.spin_once = spin_once
+        self.namespace = namespace.rstrip('/')
+        self.statuses = []  # every status heard on diagnostics (any node)
+        self.steps, self.detections = [], []
+        self.goal = self.result = self._acked = None
+        self._goal_pub = node.create_publisher(ifc.GOAL.type, self.name(ifc.GOAL.name),
+                                               ifc.GOAL.qos)
+        node.create_subscription(ifc.DIAGNOSTICS.type, self.name(ifc.DIAGNOSTICS.name),
+                                 self._diagnostics, ifc.DIAGNOSTICS.qos)
+
+    def name(self, relative):
+        """``relative`` (an interface name) in the stack's namespace."""
+        if relative.startswith('/') or not self.namespace:
+            return relative
+        return f'{self.namespace}/{relative}'
+
+    def _diagnostics(self, msg):
+        for status in msg.status:
+            self.statuses.append(status)
+            if status.name != ifc.MISSION_STATUS:
+                continue
+            values = conv.status_values(status)
+            if 'step' in values:
+                self.steps.append(StepFeedback.from_values(values))
+            elif 'adapt' in values:
+                self.detections.append(Detection(int(values['behavior_id']),
+                                                 float(values['error']), values['threshold'],
+                                                 values['adapt']))
+            elif 'goal' in values and self.goal is not None and np.allclose(
+                    np.array(values['goal'].split(), float), self.goal):
+                self._acked = True
+            if 'success' in values and self._acked:
+                self.result = MissionResult(values['success'] == 'True', int(values['steps']),
+                                            int(values['adaptations']), status.message, values)
+
+    def spin_until(self, predicate, timeout, what='condition'):
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'timed out after {timeout} s waiting for {what}')
+            self.spin_once(0.05)
+
+    def wait_until_ready(self, timeout=60.0):
+        """Wait until the adapter hears goals and this client hears the adapter."""
+        def ready():
+            talkers = {i.node_name for i in self.node.get_publishers_info_by_topic(
+                self.node.resolve_topic_name(self.name(ifc.DIAGNOSTICS.name)))}
+            return ifc.SELA_ADAPTER in talkers and self._goal_pub.get_subscription_count() > 0
+        self.spin_until(ready, timeout, 'the sela_adapter')
+
+    def go_to_pose(self, x, y, frame_id='odom', timeout=60.0, resend_period=2.0):
+        """Send the goal (x, y); returns once the adapter has taken it (resent until then:
+        ``goal_pose`` is volatile, as RViz sends it)."""
+        self.wait_until_ready(timeout)
+        self.goal = np.array([x, y], dtype=float)
+        self.result, self._acked = None, False
+        deadline = time.monotonic() + timeout
+        while not self._acked:
+            self._goal_pub.publish(conv.pose_stamped((x, y), frame_id=frame_id))
+            try:
+                self.spin_until(lambda: self._acked, resend_period, 'the goal')
+            except TimeoutError:
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f'the adapter did not take the goal ({x}, {y}) within '
+                                       f'{timeout} s') from None
+
+    def publish_goal(self, x, y, frame_id='odom'):
+        """Send a goal once, without waiting for it to be taken (e.g. a bad goal)."""
+        self._goal_pub.publish(conv.pose_stamped((x, y), frame_id=frame_id))
+
+    def is_task_complete(self):
+        self.spin_once(0.05)
+        return self.result is not None
+
+    def get_feedback(self):
+        """The latest step (None before the first)."""
+        return self.steps[-1] if self.steps else None
+
+    def get_result(self):
+        """The mission's end (None while it runs)."""
+        return self.result
+
+    def errors(self, name_part):
+        """Messages of the ERROR statuses of nodes whose status name contains ``name_part``."""
+        return [s.message for s in self.statuses
+                if name_part in s.name and s.level == ifc.ERROR_LEVEL]

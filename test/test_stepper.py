@@ -1,0 +1,371 @@
+"""The mission stepper without DDS: events in, commands out, on a fake clock.
+
+Every state and transition of the step cycle: plan, ask, command, outcome, verdict, learn;
+falls and resets, time-outs, a detector that answers late or before the outcome, an
+adaptation asked mid-gait, holds, restarts (resume or drop), odometry that moves the robot.
+"""
+import numpy as np
+import pytest
+
+from sela_ros.core.sela import SELA, SE2Motion
+from sela_ros.core.stepper import MissionStepper
+from sela_ros.core.stepper_io import (
+    AdaptRequested,
+    ClearRequested,
+    GoalReceived,
+    HoldChanged,
+    Level,
+    OutcomeReceived,
+    PlanReceived,
+    PoseObserved,
+    PublishReward,
+    PublishStatus,
+    Reply,
+    Report,
+    RequestPlan,
+    RequestReset,
+    ResetDone,
+    SaveState,
+    SendGait,
+    State,
+    StepperConfig,
+    Tick,
+    VerdictReceived,
+)
+
+FORWARD = (0.2, 0.0, 0.0)
+
+
+def _sela():
+    rng = np.random.default_rng(0)
+    candidates = rng.random((50, 2))
+    prior = np.column_stack([candidates * 0.6 - 0.3, np.zeros(50)])
+    return SELA(candidates, prior, SE2Motion())
+
+
+class Driver:
+    """Feeds a stepper and keeps what it says; the clock is ``self.now``."""
+
+    def __init__(self, **config):
+        self.stepper = MissionStepper(_sela(), StepperConfig(**config))
+        self.now = 0.0
+        self.states = {self.stepper.state}
+        self.log = []
+
+    def __call__(self, event, dt=0.0):
+        self.now += dt
+        out = self.stepper.handle(event, self.now)
+        self.states.add(self.stepper.state)
+        self.log += out
+        return out
+
+    @property
+    def state(self):
+        return self.stepper.state
+
+    def start(self, goal=(1.0, 0.0), pose=(0.0, 0.0, 0.0)):
+        self(PoseObserved(pose, stamp=0.0))
+        return only(self(GoalReceived(goal)), RequestPlan)
+
+    def plan(self, request, waypoint=None):
+        waypoint = request.start[:2] + (0.3, 0.0) if waypoint is None else waypoint
+        return self(PlanReceived(request.step, tuple(request.start), tuple(waypoint)))
+
+    def outcome(self, gait, gr=FORWARD, fallen=False, stamp=None):
+        end = self.stepper.sela.motion.predict(self.stepper.pending.pose, gr)
+        return self(OutcomeReceived(gait.behavior_id, gr, tuple(end), fallen, stamp), dt=3.0)
+
+    def step(self, request, fire=False, gr=FORWARD):
+        """One full step from its plan request: returns the next plan request (or None)."""
+        gait = only(self.plan(request), SendGait)
+        out = self.outcome(gait, gr)
+        out += self(VerdictReceived(gait.behavior_id, fire))
+        requests = of(out, RequestPlan)
+        return requests[0] if requests else None
+
+
+def of(commands, kind):
+    return [c for c in commands if isinstance(c, kind)]
+
+
+def only(commands, kind):
+    found = of(commands, kind)
+    assert len(found) == 1, commands
+    return found[0]
+
+
+def test_a_step_goes_plan_ask_command_outcome_verdict_and_the_next_plan_is_asked_early():
+    d = Driver()
+    request = d.start()
+    assert d.state is State.PLANNING and request.step == 1 and np.allclose(request.goal, (1, 0))
+    out = d.plan(request)
+    gait = only(out, SendGait)
+    assert d.state is State.EXECUTING and gait.behavior_id == 1 and gait.sigma == 0.0
+    assert of(out, SaveState)  # the command is on disk before its outcome can come
+    out = d.outcome(gait)
+    assert d.state is State.VERDICT
+    early = only(out, RequestPlan)  # asked before the verdict: the planner works meanwhile
+    assert early.step == 2 and np.allclose(early.start[:2], (0.2, 0.0))
+    status = only(out, PublishStatus).values
+    assert status['step'] == '1' and status['behavior_id'] == '1'
+    assert only(out, PublishReward).value == pytest.approx(-0.1)
+    assert len(d.stepper.sela.observations[0]) == 0  # the map is trusted: nothing learnt
+    assert d(VerdictReceived(1, False)) == []  # waits for the plan already asked
+    assert d.state is State.PLANNING
+    assert only(d.plan(early), SendGait).behavior_id == 2
+
+
+def test_goal_reached_when_the_current_pose_is_within_eps_and_max_steps_ends_a_mission():
+    d = Driver()
+    request = d.start(goal=(0.25, 0.0))
+    out = []
+    gait = only(d.plan(request), SendGait)
+    out = d.outcome(gait) + d(VerdictReceived(gait.behavior_id, False))
+    assert not of(out, RequestPlan)  # within 0.1 m of the goal: no next step
+    final = [s for s in of(out, PublishStatus) if 'success' in s.values]
+    assert d.state is State.DONE and final[0].values['success'] == 'True'
+    d = Driver(max_steps=2)
+    request = d.start(goal=(5.0, 0.0))
+    request = d.step(d.step(request))
+    assert request is None and d.state is State.DONE and d.stepper.result is False
+    assert d.stepper.steps == 2
+
+
+def test_a_fall_is_a_failed_step_learnt_as_going_nowhere_and_the_robot_is_reset():
+    d = Driver(reset_on_fall=True, adapt_on_start=True)
+    gait = only(d.plan(d.start()), SendGait)
+    out = d.outcome(gait, gr=(0.3, 0.1, -2.0), fallen=True)
+    assert not of(out, RequestPlan)  # no plan from where it lies
+    assert any('failed: the robot fell' in r.message for r in of(out, Report)
+               if r.level is Level.ERROR)
+    assert d.stepper.sela.observations[1].tolist() == [[0.0, 0.0, 0.0]]
+    out = d(VerdictReceived(gait.behavior_id, False))
+    only(out, RequestReset)
+    assert d.state is State.RESETTING
+    assert d(ResetDone(True, 'robot back at the start')) and d.state is State.READY
+    assert d.stepper.current_pose() is None  # waits for odometry after the reset
+    request = only(d(PoseObserved((0.0, 0.0, 0.0), stamp=3.0)), RequestPlan)
+    assert np.allclose(request.start, 0.0) and d.stepper.failed_steps == 1
+
+
+def test_a_reset_refused_or_unanswered_goes_on_from_where_the_robot_lies():
+    for finish in ('refused', 'timeout'):
+        d = Driver(reset_on_fall=True, outcome_timeout=5.0)
+        gait = only(d.plan(d.start()), SendGait)
+        d.outcome(gait, fallen=True)
+        d(VerdictReceived(gait.behavior_id, False))
+        assert d.state is State.RESETTING
+        if finish == 'refused':
+            out = d(ResetDone(False, 'not available'))
+        else:
+            assert d(Tick(), dt=4.0) == []
+            out = d(Tick(), dt=2.0)
+        assert any(r.level is Level.ERROR for r in of(out, Report))
+        request = only(out, RequestPlan)  # from the pose the fall ended at
+        assert np.allclose(request.start[:2], (0.2, 0.0))
+
+
+def test_an_outcome_that_never_comes_resends_the_same_command_without_a_new_prediction():
+    d = Driver(outcome_timeout=10.0)
+    gait = only(d.plan(d.start()), SendGait)
+    assert d(Tick(), dt=9.0) == []
+    again = only(d(Tick(), dt=2.0), SendGait)
+    assert again.resend and again.behavior_id == gait.behavior_id and again.index == gait.index
+    assert d.state is State.EXECUTING
+    d.outcome(gait)
+    assert d.state is State.VERDICT
+
+
+def test_a_planner_that_does_not_answer_is_asked_again_and_a_stale_answer_is_ignored():
+    d = Driver(plan_timeout=10.0)
+    first = d.start()
+    again = only(d(Tick(), dt=11.0), RequestPlan)
+    assert again.step == first.step == 1 and d.stepper.steps == 1
+    assert d(PlanReceived(7, tuple(first.start), (0.3, 0.0))) == []  # no such request
+    assert only(d.plan(again), SendGait)
+
+
+def test_a_goal_that_cannot_be_planned_is_refused_and_not_retried_after_a_restart():
+    d = Driver()
+    request = d.start()
+    out = d(PlanReceived(request.step, tuple(request.start), None, 'goal in an obstacle'))
+    assert d.state is State.IDLE and not of(out, SendGait) and d.stepper.steps == 0
+    assert 'goal in an obstacle' in only(out, Report).message
+    restarted = Driver()
+    restarted.stepper.restore(of(out, SaveState)[-1].snapshot, 0.0)
+    assert restarted(PoseObserved((0.0, 0.0, 0.0))) == [] and restarted.state is State.IDLE
+
+
+def test_a_late_verdict_still_adapts():
+    d = Driver(detector_timeout=2.0)
+    gait = only(d.plan(d.start()), SendGait)
+    d.outcome(gait)
+    out = d(Tick(), dt=2.5)  # no verdict: the next step goes on
+    assert d.state is State.PLANNING and 'no verdict' in of(out, Report)[0].message
+    out = d(VerdictReceived(gait.behavior_id, True))  # late, while planning: adapt now
+    assert d.stepper.logic.adapting and d.stepper.sela.observations[0].tolist() == [
+        gait.index]
+    assert of(out, PublishStatus)[0].values['adapt'].startswith('adaptation started')
+    assert d(VerdictReceived(gait.behavior_id, True)) == []  # a replay changes nothing
+    assert d.stepper.logic.adaptations == 1
+
+
+def test_a_late_verdict_during_the_next_gait_adapts_from_that_gait():
+    d = Driver(detector_timeout=2.0)
+    gait = only(d.plan(d.start()), SendGait)
+    request = only(d.outcome(gait), RequestPlan)
+    d(Tick(), dt=2.5)
+    second = only(d.plan(request), SendGait)
+    d(VerdictReceived(gait.behavior_id, True))
+    assert not d.stepper.logic.adapting  # not yet: the gait in flight comes first
+    d.outcome(second)
+    assert d.stepper.logic.adapting
+    assert d.stepper.sela.observations[0].tolist() == [second.index]
+
+
+def test_a_verdict_heard_before_its_outcome_is_applied_with_it():
+    d = Driver()
+    gait = only(d.plan(d.start()), SendGait)
+    assert d(VerdictReceived(gait.behavior_id, True)) == []
+    out = d.outcome(gait)
+    assert d.state is State.PLANNING and d.stepper.logic.adapting
+    assert of(out, PublishStatus)[-1].values['adapt'].startswith('adaptation started')
+
+
+def test_adapt_asked_mid_gait_starts_from_that_gait_and_again_restarts_from_scratch():
+    d = Driver()
+    gait = only(d.plan(d.start()), SendGait)
+    reply = only(d(AdaptRequested()), Reply)
+    assert reply.success and 'from the outcome of command 1' in reply.message
+    request = only(d.outcome(gait), RequestPlan)
+    assert d.stepper.logic.adapting and len(d.stepper.sela.observations[0]) == 1
+    d(VerdictReceived(gait.behavior_id, False))
+    second = only(d.plan(request), SendGait)
+    assert second.sigma > 0.0  # the prediction now says how unsure it is
+    d.outcome(second)
+    assert len(d.stepper.sela.observations[0]) == 2
+    reply = only(d(AdaptRequested()), Reply)  # a new damage: restart from the latest
+    assert 'restarted from scratch' in reply.message
+    assert d.stepper.sela.observations[0].tolist() == [second.index]
+    reply = only(d(ClearRequested()), Reply)
+    assert 'forgot 1 observation' in reply.message and not d.stepper.logic.adapting
+
+
+def test_a_hold_stops_gaits_until_it_is_lifted():
+    d = Driver()
+    out = d(HoldChanged('archive built for another simulator'))
+    assert only(out, Report).level is Level.ERROR
+    d(PoseObserved((0.0, 0.0, 0.0)))
+    out = d(GoalReceived((1.0, 0.0)))
+    assert not of(out, RequestPlan) and d.state is State.READY
+    assert any('another simulator' in r.message for r in of(out, Report))
+    assert d(HoldChanged('')) == []  # asking again: silent
+    only(d(HoldChanged(None)), RequestPlan)
+
+
+def test_the_same_goal_again_goes_on_and_a_new_one_starts_over():
+    d = Driver()
+    request = d.start()
+    out = d(GoalReceived((1.0, 0.0)))
+    assert only(out, PublishStatus).message == 'goal already in progress'
+    assert d.stepper.steps == 1
+    gait = only(d.plan(request), SendGait)
+    out = d(GoalReceived((0.0, 1.0)))
+    assert only(out, PublishStatus).values['goal'] == '0.000000 1.000000'
+    assert d.stepper.steps == 0 and d.state is State.EXECUTING  # the gait in flight ends
+    assert only(d.outcome(gait), RequestPlan).goal.tolist() == [0.0, 1.0]
+
+
+def test_outcomes_of_other_commands_are_ignored():
+    d = Driver()
+    gait = only(d.plan(d.start()), SendGait)
+    out = d(OutcomeReceived(999, FORWARD, (0.2, 0.0, 0.0)))
+    assert 'pairs with no command' in only(out, Report).message
+    assert d(OutcomeReceived(0, FORWARD, (0.2, 0.0, 0.0))) == []  # older: silently
+    assert d.state is State.EXECUTING and d.stepper.pending.behavior_id == gait.behavior_id
+
+
+def test_odometry_newer_than_the_outcome_and_far_from_it_replaces_the_pose():
+    d = Driver()
+    gait = only(d.plan(d.start()), SendGait)
+    d.outcome(gait, stamp=3.0)
+    assert d(PoseObserved((0.1, 0.0, 0.0), stamp=2.0)) == []  # older (mid-gait): ignored
+    assert d(PoseObserved((0.21, 0.0, 0.0), stamp=3.0)) == []  # the same place: noise
+    out = d(PoseObserved((0.8, 0.5, 0.0), stamp=3.0))
+    assert 'starts from odometry' in only(out, Report).message
+    request = only(d(VerdictReceived(gait.behavior_id, False)), RequestPlan)
+    assert np.allclose(request.start[:2], (0.8, 0.5))  # not from the stale outcome pose
+    # A simulator restarted (its clock went back): its odometry is the truth again.
+    gait = only(d.plan(request), SendGait)
+    d.outcome(gait, stamp=6.0)
+    d(PoseObserved((0.0, 0.0, 0.0), stamp=0.5))
+    request = only(d(VerdictReceived(gait.behavior_id, False)), RequestPlan)
+    assert np.allclose(request.start, 0.0)
+
+
+def _saved_mid_mission(at_verdict=False):
+    d = Driver(adapt_on_start=True)
+    request = d.step(d.start())
+    gait = only(d.plan(request), SendGait)
+    if at_verdict:
+        d.outcome(gait)
+    snapshot = of(d.log, SaveState)[-1].snapshot
+    return d, gait, snapshot
+
+
+@pytest.mark.parametrize('where, resumed', [((0.45, 0.0, 0.0), True),
+                                            ((1.0, 1.0, 0.0), False)])
+def test_a_restored_mission_goes_on_only_if_the_robot_is_where_it_was(where, resumed):
+    before, gait, snapshot = _saved_mid_mission(at_verdict=True)
+    d = Driver(adapt_on_start=True)
+    out = d.stepper.restore(snapshot, 0.0)
+    assert 'restored' in only(out, Report).message
+    assert len(d.stepper.sela.observations[0]) == 2  # what was learned always comes back
+    out = d(PoseObserved(where, stamp=0.0))
+    if resumed:
+        assert 'mission resumed at step 2' in only(out, Report).message
+        request = only(out, RequestPlan)
+        assert request.step == 3 and np.allclose(request.start, where)  # where it is now
+        assert d.stepper.next_id == 3  # ids go on: no clash with latched outcomes
+    else:
+        assert 'dropped' in of(out, Report)[0].message and d.state is State.IDLE
+        assert not of(out, RequestPlan)
+    # A late verdict on the step before the restart still counts.
+    d(VerdictReceived(gait.behavior_id, True))
+    assert d.stepper.logic.adaptations == 2
+
+
+def test_a_gait_in_flight_at_restart_waits_for_its_outcome_or_resends_it_from_there():
+    before, gait, snapshot = _saved_mid_mission()
+    d = Driver(adapt_on_start=True, outcome_timeout=5.0)
+    d.stepper.restore(snapshot, 0.0)
+    assert d.state is State.EXECUTING and d.stepper.pending.behavior_id == gait.behavior_id
+    d(PoseObserved((0.3, 0.0, 0.0)))  # mid-gait: no verdict on it yet
+    out = d(OutcomeReceived(gait.behavior_id, FORWARD, (0.6, 0.0, 0.0)))  # latched
+    assert only(out, RequestPlan).start[0] == 0.6 and d.state is State.VERDICT
+    assert len(d.stepper.sela.observations[0]) == 2
+    # The outcome never comes and the robot is elsewhere: the mission is dropped.
+    d = Driver(outcome_timeout=5.0)
+    d.stepper.restore(snapshot, 0.0)
+    d(PoseObserved((2.0, 2.0, 0.0)))
+    out = d(Tick(), dt=6.0)
+    assert not of(out, SendGait) and d.state is State.IDLE
+
+
+def test_every_state_is_visited():
+    visited = set()
+    d = Driver(reset_on_fall=True)
+    d(PoseObserved((0.0, 0.0, 0.0)))
+    d(HoldChanged(''))
+    d(GoalReceived((0.45, 0.0)))
+    d(HoldChanged(None))
+    request = of(d.log, RequestPlan)[0]
+    gait = only(d.plan(request), SendGait)
+    d.outcome(gait, fallen=True)
+    d(VerdictReceived(gait.behavior_id, False))
+    d(ResetDone(True, 'back'))
+    request = only(d(PoseObserved((0.0, 0.0, 0.0), stamp=4.0)), RequestPlan)
+    request = d.step(request)
+    d.step(request)
+    visited |= d.states
+    assert visited == set(State), visited
