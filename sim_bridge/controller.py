@@ -18,8 +18,9 @@ import math
 
 import numpy as np
 
+from sela_ros.core import N_PARAMS
+
 N_LEGS = 6
-N_PARAMS = 36
 N_SAMPLES = 100
 PERIOD = 1.0
 KERNEL_HALF_WIDTH = 10

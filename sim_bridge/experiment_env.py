@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sela_ros.core import N_PARAMS
 from sim_bridge.damage import parse_damage
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.hexapod import Hexapod, evaluate_gait, simulator_settings
@@ -49,8 +50,8 @@ class HexapodEnvironment:
     def __init__(self, params, damage='intact', noise_std=0.0, seed=0,
                  dt=1.0 / 240.0, gait_duration=3.0):
         params = np.asarray(params, dtype=float)
-        if params.ndim != 2 or params.shape[1] != 36:
-            raise ValueError(f'params must have shape (M, 36), got {params.shape}')
+        if params.ndim != 2 or params.shape[1] != N_PARAMS:
+            raise ValueError(f'params must have shape (M, {N_PARAMS}), got {params.shape}')
         self.params = params
         self.robot = Hexapod(dt=dt, gait_duration=gait_duration, damage=parse_damage(damage))
         self.observed = ObservedHexapod(self.robot, noise_std=noise_std, seed=seed)

@@ -1,8 +1,8 @@
-"""GP: closed-form posterior, incremental == batch, candidate cache, input checks."""
+"""GP over the archive: closed-form posterior, incremental == batch, input checks."""
 import numpy as np
 import pytest
 
-from sela_ros.core.gp import CandidateSetGP, MultiOutputGP, exponential_kernel
+from sela_ros.core.gp import CandidateSetGP, exponential_kernel
 
 
 def closed_form(X, Y, Xs, prior, sigma=0.1, variance=1.0, noise=0.001):
@@ -27,19 +27,19 @@ def test_posterior_matches_closed_form():
     rng = np.random.default_rng(1)
     X, Xs = rng.random((12, 2)), rng.random((50, 2))
     Y = rng.normal(size=(12, 2))
-    gp = MultiOutputGP(2, 2, mean=prior, sigma=0.3)
-    for x, y in zip(X, Y):
-        gp.add_sample(x, y)
-    mu, var = gp.query(Xs)
+    C = np.vstack([X, Xs])  # the observed inputs are candidates too
+    gp = CandidateSetGP(C, prior(C), sigma=0.3)
+    for i, y in enumerate(Y):
+        gp.add_sample(i, y)
+    mu, var = gp.query()
     mu_ref, var_ref = closed_form(X, Y, Xs, prior, sigma=0.3)
-    np.testing.assert_allclose(mu, mu_ref, atol=1e-9)
-    np.testing.assert_allclose(var, var_ref, atol=1e-9)
+    np.testing.assert_allclose(mu[len(X):], mu_ref, atol=1e-9)
+    np.testing.assert_allclose(var[len(X):], var_ref, atol=1e-9)
 
 
 def test_prior_only_without_samples():
-    gp = MultiOutputGP(2, 2, mean=prior)
     Xs = np.random.default_rng(0).random((5, 2))
-    mu, var = gp.query(Xs)
+    mu, var = CandidateSetGP(Xs, prior(Xs)).query()
     np.testing.assert_allclose(mu, prior(Xs))
     np.testing.assert_allclose(var, 1.0)
 
@@ -49,21 +49,16 @@ def test_candidate_cache_matches_closed_form_incrementally():
     C = rng.random((300, 3))
     P = prior(C)
     cache = CandidateSetGP(C, P, sigma=0.2)
-    batch = MultiOutputGP(3, 2, mean=prior, sigma=0.2)
     idx = rng.integers(0, 300, size=20)
     idx[5] = idx[4]  # a repeated input: fine thanks to the noise
     Y = rng.normal(size=(20, 2))
     for n, (i, y) in enumerate(zip(idx, Y), start=1):
         cache.add_sample(i, y)
-        batch.add_sample(C[i], y)
         if n in (1, 7, 20):  # incremental == batch at every stage (crosses a regrowth)
             mu_ref, var_ref = closed_form(C[idx[:n]], Y[:n], C, prior, sigma=0.2)
             mu, var = cache.query()
             np.testing.assert_allclose(mu, mu_ref, atol=1e-9)
             np.testing.assert_allclose(var, var_ref, atol=1e-9)
-            mu_b, var_b = batch.query(C)
-            np.testing.assert_allclose(mu_b, mu_ref, atol=1e-9)
-            np.testing.assert_allclose(var_b, var_ref, atol=1e-9)
     assert cache.indices == [int(i) for i in idx]
 
 
@@ -76,9 +71,9 @@ def test_observation_reduces_variance_at_that_point():
 
 
 @pytest.mark.parametrize('bad', [
-    lambda: MultiOutputGP(0, 2),
-    lambda: MultiOutputGP(2, 2, sigma=0.0),
-    lambda: MultiOutputGP(2, 2, noise=float('nan')),
+    lambda: CandidateSetGP(np.zeros((0, 2)), np.zeros((0, 2))),
+    lambda: CandidateSetGP(np.zeros((2, 2)), np.zeros((2, 2)), sigma=0.0),
+    lambda: CandidateSetGP(np.zeros((2, 2)), np.zeros((2, 2)), noise=float('nan')),
     lambda: CandidateSetGP(np.zeros(5), np.zeros((5, 2))),
     lambda: CandidateSetGP(np.zeros((5, 1)), np.zeros((4, 2))),
     lambda: CandidateSetGP(np.full((5, 1), np.nan), np.zeros((5, 2))),
@@ -89,15 +84,10 @@ def test_constructors_fail_fast(bad):
 
 
 def test_add_sample_checks():
-    gp = MultiOutputGP(2, 2)
-    with pytest.raises(ValueError, match='shape'):
-        gp.add_sample([0.1], [0.0, 0.0])
-    with pytest.raises(ValueError, match='NaN'):
-        gp.add_sample([0.1, 0.2], [np.nan, 0.0])
     cache = CandidateSetGP(np.zeros((3, 1)), np.zeros((3, 2)))
+    with pytest.raises(ValueError, match='NaN'):
+        cache.add_sample(0, [np.nan, 0.0])
     with pytest.raises(ValueError, match='index'):
         cache.add_sample(3, [0.0, 0.0])
     with pytest.raises(ValueError, match='shape'):
         cache.add_sample(0, [0.0])
-    with pytest.raises(ValueError, match='shape'):
-        gp.query(np.zeros((4, 3)))

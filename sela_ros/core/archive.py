@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from sela_ros.core import N_PARAMS
 from sela_ros.core.persistence import atomic_write
 
 #: Version of the on-disk layout; bump it when keys or meanings change.
@@ -163,8 +164,8 @@ def atomic_savez(path: str | os.PathLike, **arrays: np.ndarray) -> None:
 def _validate(archive: Archive) -> None:
     params, desc = archive.params, archive.descriptors
     reward, fitness = archive.generic_reward, archive.fitness
-    if params.ndim != 2 or params.shape[1] != 36:
-        raise ArchiveError(f'params must have shape (M, 36), got {params.shape}')
+    if params.ndim != 2 or params.shape[1] != N_PARAMS:
+        raise ArchiveError(f'params must have shape (M, {N_PARAMS}), got {params.shape}')
     m = params.shape[0]
     if desc.ndim != 2 or desc.shape[0] != m or desc.shape[1] < 1:
         raise ArchiveError(f'descriptors must have shape ({m}, d) with d >= 1, got {desc.shape}')

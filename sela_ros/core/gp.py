@@ -6,8 +6,6 @@ difference between the observations and a prior mean (the archive's prediction).
 """
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 from scipy.linalg import solve_triangular
 
@@ -92,109 +90,15 @@ class _GrowingCholesky:
         return row, d
 
 
-class MultiOutputGP:
-    """Gaussian processes, one per output (generic-reward) dimension, over shared inputs.
-
-    All outputs are observed at the same inputs and use the same kernel and noise, so their
-    covariance matrices are identical: they share ONE Cholesky factor and differ only in
-    their targets. Adding a sample extends that factor by one row (O(N^2)), never
-    refactorises it.
-
-    Args:
-        input_dim: dimension d of the (normalised) inputs.
-        output_dim: number D of outputs (GR dimensions).
-        mean: prior mean, a callable mapping an ``(n, d)`` array to an ``(n, D)`` array
-            (M-BOA: the archive's / intact model's prediction); None for a zero mean.
-        sigma: kernel length scale (``gp.kernel.sigma``).
-        variance: kernel signal variance.
-        noise: observation noise variance added to the diagonal (``gp.noise``).
-    """
-
-    def __init__(self, input_dim: int, output_dim: int,
-                 mean: Callable[[np.ndarray], np.ndarray] | None = None,
-                 sigma: float = DEFAULT_SIGMA, variance: float = DEFAULT_VARIANCE,
-                 noise: float = DEFAULT_NOISE):
-        if int(input_dim) < 1 or int(output_dim) < 1:
-            raise ValueError(
-                f'input_dim and output_dim must be >= 1, got {input_dim} and {output_dim}')
-        if mean is not None and not callable(mean):
-            raise ValueError('mean must be a callable (n, d) -> (n, D) or None')
-        _check_hyper(sigma, variance, noise)
-        self.input_dim, self.output_dim = int(input_dim), int(output_dim)
-        self.sigma, self.variance, self.noise = float(sigma), float(variance), float(noise)
-        self._mean = mean
-        self._chol = _GrowingCholesky(self.output_dim)
-        self._X = np.zeros((0, self.input_dim))
-        self._Y = np.zeros((0, self.output_dim))
-
-    @property
-    def num_samples(self) -> int:
-        return self._chol.n
-
-    @property
-    def samples(self):
-        """The observations as ``(X (N, d), Y (N, D))`` copies."""
-        return self._X.copy(), self._Y.copy()
-
-    def prior_mean(self, X) -> np.ndarray:
-        X = self._check_inputs(X)
-        if self._mean is None:
-            return np.zeros((X.shape[0], self.output_dim))
-        m = np.asarray(self._mean(X), dtype=float).reshape(X.shape[0], self.output_dim)
-        return m
-
-    def _check_inputs(self, X):
-        X = np.asarray(X, dtype=float)
-        if X.ndim == 1 and self.input_dim == 1 and X.size != 1:
-            X = X[:, None]
-        X = np.atleast_2d(X)
-        if X.ndim != 2 or X.shape[1] != self.input_dim:
-            raise ValueError(f'inputs must have shape (n, {self.input_dim}), got {X.shape}')
-        _check_finite('inputs', X)
-        return X
-
-    def add_sample(self, x, y) -> None:
-        """Add one observation ``y`` (D,) at input ``x`` (d,)."""
-        x = np.asarray(x, dtype=float).reshape(-1)
-        y = np.asarray(y, dtype=float).reshape(-1)
-        if x.shape != (self.input_dim,):
-            raise ValueError(f'x must have shape ({self.input_dim},), got {x.shape}')
-        if y.shape != (self.output_dim,):
-            raise ValueError(f'y must have shape ({self.output_dim},), got {y.shape}')
-        _check_finite('x', x)
-        _check_finite('y', y)
-        k_vec = exponential_kernel(self._X, x[None], self.sigma, self.variance)[:, 0]
-        residual = y - self.prior_mean(x[None])[0]
-        self._chol.append(k_vec, self.variance + self.noise, residual)
-        self._X = np.vstack([self._X, x])
-        self._Y = np.vstack([self._Y, y])
-
-    def query(self, X):
-        """Posterior at inputs ``X`` (n, d).
-
-        Returns:
-            ``(mu, var)``: ``mu`` (n, D) the posterior means, ``var`` (n,) the posterior
-            variance of the latent function (shared by all outputs; without the noise).
-        """
-        X = self._check_inputs(X)
-        mu = self.prior_mean(X)
-        var = np.full(X.shape[0], self.variance)
-        if self.num_samples:
-            Ks = exponential_kernel(self._X, X, self.sigma, self.variance)
-            V = solve_triangular(self._chol.L, Ks, lower=True, check_finite=False)
-            mu = mu + V.T @ self._chol.beta
-            var = var - np.sum(V * V, axis=0)
-        return mu, np.maximum(var, 0.0)
-
-
 class CandidateSetGP:
     """A multi-output GP restricted to a FIXED set of M candidate inputs (the archive).
 
     Keeps, for every candidate, the rows ``V = L^{-1} k(X_obs, X*)`` (N, M) plus the
     posterior mean (M, D) and variance (M,) up to date. A new observation appends one
     row of V: O(M N) work and memory per observation; reading the posterior of all M
-    candidates is then O(M D) (no triangular solve at query time). As in
-    :class:`MultiOutputGP`, all outputs share one Cholesky factor.
+    candidates is then O(M D) (no triangular solve at query time). All outputs are observed
+    at the same inputs with the same kernel and noise, so they share ONE Cholesky factor and
+    differ only in their targets; a sample extends it by one row, never refactorises it.
 
     Args:
         candidates: ``(M, d)`` inputs, normalised to ``[0, 1]^d``.

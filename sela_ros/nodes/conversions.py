@@ -27,10 +27,9 @@ from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from sela_ros.core import geometry
+from sela_ros.core import N_PARAMS, geometry
 from sela_ros.core.stepper_io import OutcomeReceived
 
-N_PARAMS = 36
 BEHAVIOR_ID_PREFIX = 'behavior_id='
 OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
                   'end_x', 'end_y', 'end_yaw', 'fallen', 'sim_time',

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sela_ros.core import N_PARAMS
 from sela_ros.core.archive import Archive
 from sela_ros.qd.map_elites import (
     DaskEvaluator,
@@ -132,10 +133,10 @@ def _format_duration(seconds: float) -> str:
 def time_per_evaluation(evaluate, n: int = 3, seed: int = 12345) -> float:
     """Seconds per evaluation here, measured on ``n`` random gaits after one warm-up."""
     rng = np.random.default_rng(seed)
-    evaluate(rng.random(36))  # builds the simulator (URDF, PyBullet) once per process
+    evaluate(rng.random(N_PARAMS))  # builds the simulator (URDF, PyBullet) once per process
     start = time.perf_counter()
     for _ in range(n):
-        evaluate(rng.random(36))
+        evaluate(rng.random(N_PARAMS))
     return (time.perf_counter() - start) / n
 
 

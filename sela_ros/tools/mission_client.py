@@ -10,12 +10,15 @@ It runs on a node its caller owns (and spins), so that the caller can record or 
 topics on the same node: pass ``spin_once(timeout_sec)``.
 """
 import time
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+
+STATUSES_KEPT = 100_000  # the latest diagnostics statuses, for errors() and heartbeats
 
 
 @dataclass
@@ -82,7 +85,7 @@ class MissionClient:
         self.node = node
         self.spin_once = spin_once
         self.namespace = namespace.rstrip('/')
-        self.statuses = []  # every status heard on diagnostics (any node)
+        self.statuses = deque(maxlen=STATUSES_KEPT)  # heard on diagnostics (any node)
         self.steps, self.detections = [], []
         self.goal = self.result = self._acked = None
         self._goal_pub = node.create_publisher(ifc.GOAL.type, self.name(ifc.GOAL.name),
