@@ -85,7 +85,7 @@ def test_constructors_fail_fast(bad):
 
 def test_add_sample_checks():
     cache = CandidateSetGP(np.zeros((3, 1)), np.zeros((3, 2)))
-    with pytest.raises(ValueError, match='NaN'):
+    with pytest.raises(ValueError, match='nan; expected finite'):
         cache.add_sample(0, [np.nan, 0.0])
     with pytest.raises(ValueError, match='index'):
         cache.add_sample(3, [0.0, 0.0])

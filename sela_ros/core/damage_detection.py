@@ -18,6 +18,8 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from sela_ros.core.validation import check_number
+
 
 @dataclass(frozen=True)
 class DetectorConfig:
@@ -31,16 +33,9 @@ class DetectorConfig:
 
     def __post_init__(self):
         for name in ('threshold', 'yaw_weight', 'max_sigma'):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value) or value < 0:
-                raise ValueError(f'detection.{name} must be a finite number >= 0, got {value!r}')
-        for name in ('window', 'cooldown'):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < (
-                    1 if name == 'window' else 0):
-                raise ValueError(f'detection.{name} must be an integer >= '
-                                 f"{1 if name == 'window' else 0}, got {value!r}")
+            check_number(f'detection.{name}', getattr(self, name), low=0.0)
+        check_number('detection.window', self.window, low=1, integer=True)
+        check_number('detection.cooldown', self.cooldown, low=0, integer=True)
 
 
 @dataclass(frozen=True)

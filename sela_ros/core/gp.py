@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_triangular
 
+from sela_ros.core.validation import check_number, finite_array
+
 DEFAULT_SIGMA = 0.1
 DEFAULT_VARIANCE = 1.0
 DEFAULT_NOISE = 0.001
@@ -28,16 +30,13 @@ def exponential_kernel(a, b, sigma=DEFAULT_SIGMA, variance=DEFAULT_VARIANCE):
 
 
 def _check_hyper(sigma, variance, noise):
-    for name, value in (('sigma', sigma), ('variance', variance)):
-        if not np.isfinite(value) or value <= 0:
-            raise ValueError(f'kernel {name} must be a finite number > 0, got {value!r}')
-    if not np.isfinite(noise) or noise < 0:
-        raise ValueError(f'GP noise must be a finite number >= 0, got {noise!r}')
+    check_number('kernel sigma', float(sigma), low=0.0, low_open=True)
+    check_number('kernel variance', float(variance), low=0.0, low_open=True)
+    check_number('GP noise', float(noise), low=0.0)
 
 
 def _check_finite(name, array):
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f'{name} contains NaN or inf; expected finite numbers')
+    finite_array(array, name)
 
 
 class _GrowingCholesky:

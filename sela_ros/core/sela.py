@@ -17,6 +17,7 @@ import numpy as np
 from sela_ros.core import acquisition, fall_risk, gp
 from sela_ros.core.geometry import se2_compose, se2_relative
 from sela_ros.core.planning import next_waypoint, straight_line_planner
+from sela_ros.core.validation import check_number
 
 
 class PointMotion:
@@ -82,13 +83,8 @@ class SELAConfig:
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value):
-                raise ValueError(f'{_dotted(f.name)} must be a finite number, got {value!r}')
-            if value < 0 or (value == 0 and f.name != 'acquisition_ucb_alpha'
-                             and f.name != 'gp_noise'):
-                raise ValueError(f'{_dotted(f.name)} must be > 0, got {value!r}')
+            check_number(_dotted(f.name), getattr(self, f.name), low=0.0,
+                         low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise'))
 
     @classmethod
     def keys(cls):

@@ -28,6 +28,7 @@ from sela_ros.core.mission_status import detection_status, goal_status, mission_
 from sela_ros.core.persistence import mission_snapshot, restore_mission
 from sela_ros.core.stepper_io import (
     AdaptRequested,
+    AskedPlan,
     ClearRequested,
     GoalReceived,
     HoldChanged,
@@ -76,7 +77,7 @@ class MissionStepper:
         self.reset_needed = False
         self.adapt_after_outcome = False
         self.resume = None  # a restored mission waiting to see where the robot is
-        self._plan = None  # the plan asked for: {'step', 'start', 'waypoint', 'refused', 't'}
+        self._plan = None  # AskedPlan
         self._verdicts = {}  # behaviour id -> verdict heard before the outcome
         self.last_id = None  # id of the latest outcome processed
         self._deadline = None  # of the reset
@@ -151,14 +152,14 @@ class MissionStepper:
 
     def _on_plan(self, event, now):
         plan = self._plan
-        if plan is None or plan['step'] != event.step or not np.array_equal(
-                plan['start'], np.asarray(event.start, dtype=float)):
+        if plan is None or plan.step != event.step or not np.array_equal(
+                plan.start, np.asarray(event.start, dtype=float)):
             return []  # an answer to an older request
         if event.waypoint is None:
-            plan['refused'] = event.reason or 'no path'
+            plan.refused = event.reason or 'no path'
         else:
-            plan['waypoint'] = np.asarray(event.waypoint, dtype=float).reshape(-1)[:2]
-        if self.state is State.PLANNING and self.pending.step == plan['step']:
+            plan.waypoint = np.asarray(event.waypoint, dtype=float).reshape(-1)[:2]
+        if self.state is State.PLANNING and self.pending.step == plan.step:
             return self._plan_ready(now)
         return []
 
@@ -308,31 +309,30 @@ class MissionStepper:
             return self._finish(False, pose)
         out = []
         plan = self._plan
-        if plan is None or plan['step'] != self.steps + 1 or not np.array_equal(
-                plan['start'], pose) or plan['refused']:
+        if plan is None or plan.step != self.steps + 1 or not np.array_equal(
+                plan.start, pose) or plan.refused:
             out.append(self._ask_plan(self.steps + 1, pose, now))
         self.steps += 1
-        self.pending = PendingStep(step=self.steps, pose=pose.copy(), t_start=self._plan['t'],
+        self.pending = PendingStep(step=self.steps, pose=pose.copy(), t_start=self._plan.t,
                                    deadline=now + self.config.plan_timeout)
         self.state = State.PLANNING
         return out + self._plan_ready(now)
 
     def _ask_plan(self, step, pose, now):
-        self._plan = {'step': step, 'start': np.array(pose, dtype=float), 'waypoint': None,
-                      'refused': None, 't': now}
-        return RequestPlan(step, self._plan['start'].copy(), self.goal.copy())
+        self._plan = AskedPlan(step, np.array(pose, dtype=float), now)
+        return RequestPlan(step, self._plan.start.copy(), self.goal.copy())
 
     def _plan_ready(self, now):
         plan, p = self._plan, self.pending
-        if plan['refused']:
+        if plan.refused:
             self.steps -= 1
             self.state = State.IDLE  # a goal that cannot be planned is not retried
-            return [Report(Level.ERROR, f"no plan to the goal ({plan['refused']}); waiting for "
+            return [Report(Level.ERROR, f"no plan to the goal ({plan.refused}); waiting for "
                            'a new goal'), self._save()]
-        if plan['waypoint'] is None:
+        if plan.waypoint is None:
             return []
         self._plan = None
-        p.waypoint = plan['waypoint']
+        p.waypoint = plan.waypoint
         p.decision = self.logic.decide(p.pose, p.waypoint)
         p.behavior_id = self.next_id
         self.next_id += 1

@@ -193,6 +193,17 @@ class StepRecord:
 
 
 @dataclass
+class AskedPlan:
+    """The plan asked for (one at a time), and its answer once it comes."""
+
+    step: int
+    start: np.ndarray
+    t: float  # when it was asked
+    waypoint: np.ndarray = None
+    refused: str = None  # why there is no path
+
+
+@dataclass
 class PendingStep:
     """The step in flight: filled in as it goes through the cycle."""
 

@@ -29,6 +29,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from sela_ros.core import N_PARAMS, geometry
 from sela_ros.core.stepper_io import OutcomeReceived
+from sela_ros.core.validation import finite_array
 
 BEHAVIOR_ID_PREFIX = 'behavior_id='
 OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
@@ -82,17 +83,7 @@ def time_from_msg(stamp):
 
 
 def _finite_array(values, name, length=None):
-    try:
-        array = np.asarray(values, dtype=float).reshape(-1)
-    except (TypeError, ValueError) as exc:
-        raise MessageError(f'{name}: expected numbers, got {values!r}') from exc
-    if length is not None and array.size != length:
-        raise MessageError(f'{name}: expected {length} values, got {array.size}')
-    bad = ~np.isfinite(array)
-    if bad.any():
-        raise MessageError(f'{name}: value {int(np.flatnonzero(bad)[0])} is '
-                           f'{array[bad][0]}; expected finite numbers')
-    return array
+    return finite_array(values, name, length, error=MessageError)
 
 
 # --- behaviour commands --------------------------------------------------------------------
