@@ -152,7 +152,7 @@ def overhead(args):
     execute = sorted(float(v['execute_ms']) for v in dds_all)
     print(f'mission: damage {args.damage}, goal {goal}, seed {args.seed}, '
           f'{args.rounds} rounds, same decisions in every round: {all_same}')
-    print(f'over DDS, median per step: outcome -> next command (plan + target + learn + '
+    print(f'over DDS, median per step: outcome -> next command (plan + learn + '
           f'ask) {decide[len(decide) // 2]:.1f} ms, command -> outcome '
           f'{execute[len(execute) // 2]:.1f} ms')
     ratios.sort()

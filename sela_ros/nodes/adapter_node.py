@@ -86,6 +86,8 @@ class SelaAdapter(Node):
                                       params.stepper_config(self.values))
         self.sim_check.use(archive, path)
         self.get_logger().info(f'archive {path}: {len(archive)} behaviours')
+        if old is not None:
+            self.stepper.next_id = old.next_id  # command ids stay unique across archives
         if old is not None and old.goal is not None and old.state is not io.State.DONE:
             if old.odom is not None:  # the new stepper goes on with the goal, from here
                 self._feed(io.PoseObserved(tuple(old.odom), old.odom_stamp))

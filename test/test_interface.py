@@ -1,0 +1,37 @@
+"""The graph's names, written once: relative in code, DESIGN.md's in the root namespace."""
+from sela_ros.nodes import interface as ifc
+
+DESIGN = {  # DESIGN.md's table (plus what the package adds), as seen in the root namespace
+    '/clock', '/hexapod/odom', '/hexapod/behavior', '/hexapod/behavior_outcome', '/goal_pose',
+    '/planner/path', '/planner/make_plan', '/sela/target', '/sela/reward', '/diagnostics',
+    '/sela_adapter/adapt', '/sim_bridge/reset',
+}
+ADDED = {'/hexapod/joint_states', '/planner/map', '/sela/prediction',
+         '/damage_detector/verdict', '/sela_adapter/clear'}
+
+
+def test_root_names_are_the_design_ones():
+    names = {t.root_name for t in ifc.TOPICS} | {s.root_name for s in ifc.SERVICES}
+    assert names == DESIGN | ADDED
+
+
+def test_names_are_relative_so_a_namespace_moves_the_stack():
+    for topic in ifc.TOPICS:
+        assert topic is ifc.CLOCK or not topic.name.startswith('/'), topic
+    for service in ifc.SERVICES:
+        assert not service.name.startswith('/') and service.own_name.startswith('~/')
+        assert service.name == f'{service.owner}/{service.own_name[2:]}'
+    assert ifc.PATH.own_name == '~/path' and ifc.VERDICT.own_name == '~/verdict'
+    assert ifc.GOAL.own_name == 'goal_pose'  # a shared topic: the same name for everyone
+
+
+def test_what_a_decision_depends_on_is_reliable_and_kept_for_late_joiners():
+    from rclpy.qos import QoSDurabilityPolicy, QoSReliabilityPolicy
+
+    for topic in (ifc.OUTCOME, ifc.PREDICTION, ifc.VERDICT):
+        assert topic.qos.reliability == QoSReliabilityPolicy.RELIABLE
+        assert topic.qos.durability == QoSDurabilityPolicy.TRANSIENT_LOCAL
+        assert topic.qos.depth >= 50
+    # /goal_pose as RViz's 2D Goal Pose tool and nav2: reliable, volatile.
+    assert ifc.GOAL.qos.reliability == QoSReliabilityPolicy.RELIABLE
+    assert ifc.GOAL.qos.durability == QoSDurabilityPolicy.VOLATILE
