@@ -3,10 +3,16 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 PKG_SOURCES := $(shell find sela_ros sim_bridge -name '*.py' -o -name '*.urdf' -o -name '*.npz' 2>/dev/null) \
-	setup.py setup.cfg package.xml resource/sela_ros $(wildcard config/*.yaml launch/*.py rviz/*.rviz)
+	setup.py setup.cfg package.xml resource/sela_ros $(wildcard config/*.yaml config/*.xml launch/*.py rviz/*.rviz)
 
-# DDS stays on loopback; the venv is the ament prefix that `ros2 run`-style lookups use.
-export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+# DDS stays on loopback: Fast DDS with config/fastdds_loopback.xml (UDP on 127.0.0.1 and
+# shared memory only; SYSTEM_DEFAULT is the discovery range in which the rmw applies the
+# profile as it is: LOCALHOST would add send sockets on every interface). The programs set
+# the same themselves (sela_ros/tools/ros_env.py). The venv is the ament prefix that
+# `ros2 run`-style lookups use.
+export FASTDDS_DEFAULT_PROFILES_FILE := $(abspath config/fastdds_loopback.xml)
+export FASTRTPS_DEFAULT_PROFILES_FILE := $(FASTDDS_DEFAULT_PROFILES_FILE)
+export ROS_AUTOMATIC_DISCOVERY_RANGE := SYSTEM_DEFAULT
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
 export PYTHONDONTWRITEBYTECODE := 1

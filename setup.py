@@ -26,7 +26,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + package_name + '/config',
+         sorted(glob('config/*.yaml') + glob('config/*.xml'))),
         ('share/' + package_name + '/launch', sorted(glob('launch/*.py'))),
         ('share/' + package_name + '/rviz', sorted(glob('rviz/*.rviz'))),
         # The intact model (robot_state_publisher's); the simulator publishes the damaged one.

@@ -22,7 +22,6 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random().randint(100, 101)))
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 from sela_ros.tools.ros_env import ensure_ros_environment  # noqa: E402

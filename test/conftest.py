@@ -35,18 +35,17 @@ def _claim_domain_id():
 def pytest_configure(config):
     if 'SELA_TEST_DOMAIN_ID' not in os.environ:
         os.environ['SELA_TEST_DOMAIN_ID'] = str(_claim_domain_id())
-    os.environ['ROS_DOMAIN_ID'] = os.environ['SELA_TEST_DOMAIN_ID']
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
-    if not os.environ.get('AMENT_PREFIX_PATH'):
-        import sys
+    # This process (the tests' own client nodes) and every node it starts: this run's domain,
+    # DDS on loopback only (sela_ros.tools.ros_env; test_loopback.py checks the sockets).
+    from sela_ros.tools.ros_env import ros_environment
 
-        os.environ['AMENT_PREFIX_PATH'] = sys.prefix  # the .venv is the package's prefix
+    os.environ.update(ros_environment(domain_id=int(os.environ['SELA_TEST_DOMAIN_ID'])))
     os.environ.setdefault('ROS_LOG_DIR', os.path.join(tempfile.gettempdir(), 'sela_ros_test_logs'))
 
 
 def pytest_report_header(config):
-    return f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')} (loopback only)"
+    return (f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')}, DDS on loopback "
+            f"({os.environ.get('FASTDDS_DEFAULT_PROFILES_FILE', 'no profile')})")
 
 
 @pytest.fixture

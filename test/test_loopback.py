@@ -1,0 +1,69 @@
+"""DDS stays on loopback: the profile is applied, and every socket of every process is local."""
+import xml.etree.ElementTree as ET
+
+import psutil
+import pytest
+
+from sela_ros.tools.ros_env import loopback_profile, ros_environment
+
+from ros_graph import Client, NodeProcesses
+
+LOOPBACK = {'127.0.0.1', '::1'}
+NS = {'dds': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
+
+
+def test_the_environment_applies_the_loopback_profile():
+    env = ros_environment(domain_id=42, base={})
+    assert env['FASTDDS_DEFAULT_PROFILES_FILE'] == env['FASTRTPS_DEFAULT_PROFILES_FILE']
+    assert env['FASTDDS_DEFAULT_PROFILES_FILE'] == str(loopback_profile())
+    # The one range in which the rmw leaves the profile's transports and locators alone.
+    assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
+    assert env['RMW_IMPLEMENTATION'] == 'rmw_fastrtps_cpp' and env['ROS_DOMAIN_ID'] == '42'
+
+
+def test_the_profile_allows_loopback_transports_only():
+    root = ET.parse(loopback_profile()).getroot()
+    participant = root.find('.//dds:participant', NS)
+    assert participant.get('is_default_profile') == 'true'
+    rtps = participant.find('dds:rtps', NS)
+    assert rtps.findtext('dds:useBuiltinTransports', namespaces=NS) == 'false'
+    used = {t.text for t in rtps.findall('dds:userTransports/dds:transport_id', NS)}
+    for descriptor in root.findall('.//dds:transport_descriptor', NS):
+        if descriptor.findtext('dds:transport_id', namespaces=NS) not in used:
+            continue
+        kind = descriptor.findtext('dds:type', namespaces=NS)
+        assert kind in ('UDPv4', 'SHM'), kind
+        if kind == 'UDPv4':
+            allowed = [a.text for a in descriptor.findall('dds:interfaceWhiteList/*', NS)]
+            assert allowed == ['127.0.0.1']
+    addresses = [a.text for a in rtps.findall('.//dds:locator/dds:udpv4/dds:address', NS)]
+    assert addresses and set(addresses) == {'127.0.0.1'}
+
+
+def _non_loopback_sockets(pid):
+    return [(c.type.name, c.laddr.ip, c.laddr.port)
+            for c in psutil.Process(pid).net_connections(kind='inet')
+            if c.laddr and c.laddr.ip not in LOOPBACK]
+
+
+@pytest.mark.dds
+def test_every_node_process_binds_loopback_only():
+    nodes = NodeProcesses()
+    client = Client('sela_loopback_check')
+    try:
+        # Wait until each node has its DDS participant up and has been discovered: its sockets
+        # are all open by then (discovery itself went over them).
+        names = set(nodes.procs)
+        client.spin_until(lambda: names <= set(client.node.get_node_names()), 60,
+                          'the four nodes in the graph')
+        pids = {name: proc.pid for name, (proc, _) in nodes.procs.items()}
+        pids['test client (this process)'] = psutil.Process().pid
+        found = {name: psutil.Process(pid).net_connections(kind='inet')
+                 for name, pid in pids.items()}
+        assert all(found.values()), found  # each one does use UDP (on loopback)
+        outside = {name: _non_loopback_sockets(pid) for name, pid in pids.items()}
+        assert not any(outside.values()), outside
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
