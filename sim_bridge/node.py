@@ -29,6 +29,7 @@ except ImportError:  # pragma: no cover - a prefix without tf2_msgs: no /tf, sai
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
@@ -125,6 +126,7 @@ class SimBridge(Node):
 
     # --- callbacks (short: they only validate and enqueue) -------------------------------
 
+    @guard
     def behavior_callback(self, msg):
         try:
             params, behavior_id = conv.behavior_from_msg(msg)
@@ -140,6 +142,7 @@ class SimBridge(Node):
             self._next_auto_id += 1
         self._enqueue('gait', behavior_id, params)
 
+    @guard_service
     def reset_callback(self, request, response):
         # Callbacks run one at a time on the executor's thread, and only they fill the queue:
         # an idle worker stays idle while the robot is reset here.
@@ -163,6 +166,7 @@ class SimBridge(Node):
             self._work.append((kind, a, b))
             self._cond.notify()
 
+    @guard_parameters
     def parameters_callback(self, params):
         # Called by params.declare with values its check accepted.
         for param in params:

@@ -49,3 +49,21 @@ def test_bad_config_is_a_clear_error(kwargs):
 def test_non_finite_outcome_is_rejected():
     with pytest.raises(ValueError, match='non-finite'):
         DamageDetector().observe([0, 0, 0], [math.nan, 0, 0])
+
+
+@pytest.mark.parametrize('predicted, observed', [
+    ([0, 0, 1e308], [0, 0, -1e308]),            # the yaw difference overflows
+    ([1e308, -1e308, 0], [-1e308, 1e308, 0]),   # so does the position difference
+    ([0, 0, -1.7976931348623157e308], [0, 0, 1.7976931348623157e308]),
+])
+def test_finite_values_whose_difference_overflows_are_judged_not_raised(predicted, observed):
+    error = prediction_error(predicted, observed, 0.2)
+    assert error >= 0 and not math.isnan(error)
+    verdict = DamageDetector(DetectorConfig(window=1)).observe(predicted, observed)
+    assert verdict.judged and not math.isnan(verdict.error)
+
+
+def test_wrapped_heading_error_matches_the_plain_one_for_ordinary_values():
+    for a, b in ((0.3, -0.2), (3.0, -3.0), (10.0, -7.0), (-1e6, 2.5)):
+        expected = abs(math.remainder(b - a, 2 * math.pi))
+        assert prediction_error([0, 0, a], [0, 0, b], 1.0) == pytest.approx(expected, abs=1e-6)

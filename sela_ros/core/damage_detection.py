@@ -49,11 +49,19 @@ class Verdict:
 
 
 def prediction_error(predicted_gr, observed_gr, yaw_weight):
+    """The error of one step; finite inputs give a finite or infinite error, never a raise.
+
+    Two finite values can be further apart than the largest float (1e308 and -1e308): the
+    position error is then ``inf`` (it is that far off), and each heading is wrapped to
+    (-pi, pi] before the difference is taken, so it never overflows.
+    """
     dx = float(observed_gr[0]) - float(predicted_gr[0])
     dy = float(observed_gr[1]) - float(predicted_gr[1])
     error = math.hypot(dx, dy)
     if len(predicted_gr) > 2 and len(observed_gr) > 2:
-        dyaw = math.remainder(float(observed_gr[2]) - float(predicted_gr[2]), 2 * math.pi)
+        dyaw = math.remainder(math.remainder(float(observed_gr[2]), 2 * math.pi)
+                              - math.remainder(float(predicted_gr[2]), 2 * math.pi),
+                              2 * math.pi)
         error += yaw_weight * abs(dyaw)
     return error
 

@@ -15,6 +15,7 @@ from rclpy.node import Node
 from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+from sela_ros.nodes.guard import guard, guard_parameters
 from sela_ros.nodes.heartbeat import SilenceWatch, add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
@@ -63,10 +64,12 @@ class DamageDetectorNode(Node):
         add_heartbeat(self)
         self.get_logger().info(f'threshold {self.detector.config.threshold} m')
 
+    @guard
     def diagnostics_callback(self, msg):
         for status in msg.status:
             self.watch.heard(status.name)
 
+    @guard
     def check_heartbeats(self):
         newly_silent, back = self.watch.check()
         statuses = []
@@ -90,6 +93,7 @@ class DamageDetectorNode(Node):
         values.update(overrides)
         return DetectorConfig(**values)
 
+    @guard_parameters
     def parameters_callback(self, params):
         # Called by params.declare with values its check accepted; the detector's own
         # configuration check still applies to the combination.
@@ -109,6 +113,7 @@ class DamageDetectorNode(Node):
             self.detector = DamageDetector(config)
         return SetParametersResult(successful=True)
 
+    @guard
     def prediction_callback(self, msg):
         try:
             behavior_id, gr, sigma = conv.prediction_from_msg(msg)
@@ -121,6 +126,7 @@ class DamageDetectorNode(Node):
         else:
             _keep(self.predictions, behavior_id, (gr, sigma))
 
+    @guard
     def outcome_callback(self, msg):
         try:
             outcome = conv.outcome_from_msg(msg)

@@ -21,6 +21,7 @@ from rclpy.node import Node
 from sela_ros.core.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
@@ -152,9 +153,11 @@ class PlannerNode(Node):
         if path:
             try:
                 return load_map_file(path)
-            except ValueError as exc:
+            except Exception as exc:  # noqa: BLE001 - whatever the file holds (origin: 5)
                 # A bad map file must not take the planner down: say why, use the params.
-                self.map_error = f'{exc}; planning on the map.* parameters instead'
+                detail = exc if isinstance(exc, ValueError) else (
+                    f'map file {path}: {type(exc).__name__}: {exc}')
+                self.map_error = f'{detail}; planning on the map.* parameters instead'
                 self.get_logger().error(self.map_error)
         return grid_from_description(
             self.get_parameter('map.resolution').value, self.get_parameter('map.origin').value,
@@ -165,6 +168,7 @@ class PlannerNode(Node):
         # Not set (None) when none are given: ROS cannot hold an empty typed array in YAML.
         return list(self.get_parameter('map.obstacles').value or [])
 
+    @guard_parameters
     def parameters_callback(self, params):
         # Called by params.declare with values its check accepted (map.* are read-only).
         for param in params:
@@ -174,12 +178,14 @@ class PlannerNode(Node):
                 self.planner = GridPlanner(self.grid, inflation=float(param.value))
         return SetParametersResult(successful=True)
 
+    @guard
     def odom_callback(self, msg):
         try:
             self.pose = conv.pose_from_odometry(msg)
         except conv.MessageError as exc:
             self.get_logger().error(f'ignored odometry: {exc}')
 
+    @guard
     def goal_callback(self, msg):
         try:
             goal = conv.goal_from_pose_stamped(msg, self.frame_id)
@@ -197,6 +203,7 @@ class PlannerNode(Node):
         if self.pose is not None:
             self._plan(self.pose[:2], goal, msg.header.stamp)
 
+    @guard_service
     def make_plan_callback(self, request, response):
         try:
             start = conv.goal_from_pose_stamped(request.start, self.frame_id)

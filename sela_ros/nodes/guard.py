@@ -1,0 +1,97 @@
+"""A guard at every edge: an exception in a callback is reported, never the end of the node.
+
+rclpy lets an exception raised by a subscription, timer, service or parameter callback
+escape ``spin()``, and the node process dies: one malformed message, one unforeseen value,
+and the robot loses a node (and, before it is restarted, whatever it was doing). Each
+callback of a node is decorated with one of these; an exception becomes an ERROR on
+``/diagnostics`` (name ``<node>: <what>``, the exception type and message) and in the log
+(with the traceback), and the node goes on with the next message:
+
+* :func:`guard` for subscriptions, timers and future done-callbacks (nothing to return);
+* :func:`guard_service` for services: the response is returned, with ``success`` false and
+  the error in ``message`` when the type has those fields;
+* :func:`guard_parameters` for on-set-parameters callbacks: the change is refused with the
+  error as the reason (nothing is applied: a callback validates before it applies).
+"""
+import functools
+import traceback
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rcl_interfaces.msg import SetParametersResult
+
+from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
+from sela_ros.nodes.qos import STATE_QOS
+
+MAX_TEXT = 400  # characters of an exception message kept (a fuzzed message can be huge)
+
+
+def _short(text):
+    text = str(text)
+    return text if len(text) <= MAX_TEXT else text[:MAX_TEXT] + f'... ({len(text)} chars)'
+
+
+def report_exception(node, what, exc):
+    """Log ``exc`` with its traceback and publish it as an ERROR on ``/diagnostics``.
+
+    Never raises: a report that cannot be published (the node is shutting down) is only
+    logged. Returns the one-line description.
+    """
+    line = f'{what} failed: {type(exc).__name__}: {_short(exc)} (the node keeps running)'
+    try:
+        node.get_logger().error(line + '\n' + _short(''.join(
+            traceback.format_exception(type(exc), exc, exc.__traceback__)[-6:])))
+    except Exception:  # noqa: BLE001 - the logger itself failing must not end the node
+        pass
+    try:
+        pub = getattr(node, '_guard_diagnostics', None)
+        if pub is None:
+            pub = node._guard_diagnostics = node.create_publisher(
+                DiagnosticArray, '/diagnostics', STATE_QOS)
+        pub.publish(diagnostic_array(
+            diagnostic_status(DiagnosticStatus.ERROR, f'{node.get_name()}: {what}', line,
+                              {'exception': type(exc).__name__}),
+            node.get_clock().now().to_msg()))
+    except Exception:  # noqa: BLE001 - e.g. the context is already shut down
+        pass
+    return line
+
+
+def _wrap(method, what, fallback):
+    name = what or method.__name__.removesuffix('_callback').replace('_', ' ')
+
+    @functools.wraps(method)
+    def guarded(self, *args):
+        try:
+            return method(self, *args)
+        except Exception as exc:  # noqa: BLE001 - that is the point: report, keep running
+            return fallback(args, report_exception(self, name, exc))
+    return guarded
+
+
+def _failed_response(args, line):
+    response = args[-1] if args else None
+    for field, value in (('success', False), ('message', line)):
+        if response is not None and hasattr(response, field):
+            setattr(response, field, value)
+    return response
+
+
+def _refused(args, line):
+    return SetParametersResult(successful=False, reason=line)
+
+
+def _decorator(fallback, doc):
+    def decorate(method=None, *, what=None):
+        if method is None:
+            return lambda m: _wrap(m, what, fallback)
+        return _wrap(method, what, fallback)
+    decorate.__doc__ = doc
+    return decorate
+
+
+guard = _decorator(lambda args, line: None, 'Decorate a subscription, timer or done callback '
+                   '(``@guard`` or ``@guard(what=...)``).')
+guard_service = _decorator(_failed_response, 'Decorate a service callback '
+                           '``(self, request, response)``.')
+guard_parameters = _decorator(_refused, 'Decorate an on-set-parameters callback '
+                              '``(self, params)``.')

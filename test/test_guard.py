@@ -1,0 +1,156 @@
+"""A guard at every edge: an exception in a callback is an ERROR on /diagnostics, and the
+node keeps running (unit tests on a stand-in node, then real nodes over DDS)."""
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from nav_msgs.srv import GetPlan
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes.guard import guard, guard_parameters, guard_service
+from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+
+from ros_graph import Client, NodeProcesses
+
+
+class _Logger:
+    def __init__(self):
+        self.errors = []
+
+    def error(self, text):
+        self.errors.append(text)
+
+
+class _Clock:
+    def now(self):
+        class _Now:
+            def to_msg(self):
+                return conv.time_to_msg(0.0)
+        return _Now()
+
+
+class _Publisher:
+    def __init__(self):
+        self.sent = []
+
+    def publish(self, msg):
+        self.sent.append(msg)
+
+
+class FakeNode:
+    """Just what the guard uses of an rclpy Node."""
+
+    def __init__(self):
+        self.logger, self.pub, self.calls = _Logger(), _Publisher(), []
+
+    def get_logger(self):
+        return self.logger
+
+    def get_name(self):
+        return 'fake'
+
+    def get_clock(self):
+        return _Clock()
+
+    def create_publisher(self, *args):
+        return self.pub
+
+    @guard
+    def odom_callback(self, msg):
+        self.calls.append(msg)
+        return 1 / msg
+
+    @guard(what='heartbeat check')
+    def check(self):
+        raise RuntimeError('x' * 10_000)
+
+    @guard_service
+    def adapt_callback(self, request, response):
+        raise KeyError('pending')
+
+    @guard_parameters
+    def parameters_callback(self, params):
+        raise TypeError('unhashable')
+
+
+def test_a_callback_that_raises_is_reported_and_the_next_call_works():
+    node = FakeNode()
+    assert node.odom_callback(0) is None
+    assert node.odom_callback(4) == 0.25  # the node goes on with the next message
+    [array] = node.pub.sent
+    [status] = array.status
+    assert status.level == DiagnosticStatus.ERROR and status.name == 'fake: odom'
+    assert 'odom failed: ZeroDivisionError' in status.message
+    assert 'keeps running' in status.message
+    assert 'Traceback' in node.logger.errors[0] and 'odom_callback' in node.logger.errors[0]
+
+
+def test_huge_exception_messages_are_cut():
+    node = FakeNode()
+    node.check()
+    message = node.pub.sent[0].status[0].message
+    assert node.pub.sent[0].status[0].name == 'fake: heartbeat check'
+    assert len(message) < 600 and '(10000 chars)' in message
+
+
+def test_a_service_answers_failure_and_a_parameter_change_is_refused():
+    node = FakeNode()
+    response = node.adapt_callback(Trigger.Request(), Trigger.Response())
+    assert response.success is False and "KeyError: 'pending'" in response.message
+    result = node.parameters_callback([])
+    assert not result.successful and 'TypeError: unhashable' in result.reason
+
+
+@pytest.mark.dds
+def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
+    """A map file with wrongly typed fields, a negative lookahead given at start-up, and a
+    prediction and outcome whose yaw difference overflows (two finite values)."""
+    bad_map = tmp_path / 'bad_map.yaml'
+    bad_map.write_text('resolution: 0.05\norigin: 5\nwidth: 4\nheight: 4\nobstacles: null\n')
+    nodes = NodeProcesses({'planner': {'map.file': str(bad_map), 'planner.lookahead': -1.0}},
+                          names=('planner', 'damage_detector'))
+    client = Client()
+    statuses = []
+    try:
+        node = client.node
+        node.create_subscription(DiagnosticArray, '/diagnostics',
+                                 lambda m: statuses.extend(m.status), STATE_QOS)
+        goal_pub = node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
+        odom_pub = node.create_publisher(conv.Odometry, '/hexapod/odom', STATE_QOS)
+        prediction_pub = node.create_publisher(Float64MultiArray, '/sela/prediction',
+                                               COMMAND_QOS)
+        outcome_pub = node.create_publisher(Float64MultiArray,
+                                            '/hexapod/behavior_outcome', OUTCOME_QOS)
+
+        def errors(part):
+            return [s.message for s in statuses
+                    if s.level == DiagnosticStatus.ERROR and part in s.message]
+
+        client.spin_until(lambda: odom_pub.get_subscription_count() > 0
+                          and prediction_pub.get_subscription_count() > 0
+                          and outcome_pub.get_subscription_count() > 0, 60, 'the two nodes')
+        client.spin_until(lambda: errors('bad_map.yaml'), 30, 'the bad map file reported')
+        assert 'TypeError' in errors('bad_map.yaml')[0]
+        odom_pub.publish(conv.odometry_msg(np.zeros(3), stamp=0.0))
+        goal_pub.publish(conv.pose_stamped((1.0, 1.0), frame_id='odom'))
+        client.spin_until(lambda: errors('lookahead must be'), 30,
+                          'the planning error of the negative lookahead reported')
+
+        verdicts = []
+        node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: verdicts.extend(
+            s for s in m.status if s.name == 'damage_detector: prediction error'), STATE_QOS)
+        prediction_pub.publish(conv.prediction_to_msg(7, np.array([0.0, 0.0, 1e308])))
+        outcome_pub.publish(conv.outcome_to_msg(conv.BehaviorOutcome(
+            7, np.array([0.0, 0.0, -1e308]), np.zeros(3), np.zeros(3))))
+        client.spin_until(lambda: verdicts or not all(nodes.alive().values()), 30,
+                          'a verdict on the overflowing outcome')
+        assert all(nodes.alive().values()), nodes.logs()
+        # Both still serve: the planner answers a plan request with the reason it cannot plan.
+        answer = client.call(node.create_client(GetPlan, '/planner/make_plan'),
+                             GetPlan.Request(), timeout=30)
+        assert not answer.plan.poses
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
