@@ -75,6 +75,12 @@ def test_missing_file(tmp_path):
         load_archive(tmp_path / 'nope.npz')
 
 
+@pytest.mark.parametrize('name', ['a' * 300, 'x' * 5000 + '/y.npz', 'nul\0byte.npz'])
+def test_unusable_path_is_an_archive_error(tmp_path, name):
+    with pytest.raises(ArchiveError, match='cannot be used|no archive file'):
+        load_archive(tmp_path / name)
+
+
 @pytest.mark.parametrize('keep', [0.3, 0.6, 0.95])
 def test_truncated_file(tmp_path, keep):
     path = _archive(m=500).save(tmp_path / 'a.npz')

@@ -245,7 +245,12 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
             dtypes or NaNs, or was built with other simulator settings.
     """
     path = Path(path)
-    if not path.is_file():
+    try:
+        exists = path.is_file()
+    except (OSError, ValueError) as exc:  # a name too long for the file system, a NUL byte
+        raise ArchiveError(f'archive path {str(path)[:200]!r} cannot be used: '
+                           f'{getattr(exc, "strerror", None) or exc}') from None
+    if not exists:
         raise ArchiveError(f'no archive file at {path}. ' + _REBUILD_HINT)
     try:
         with np.load(path, allow_pickle=False) as npz:
