@@ -2,7 +2,6 @@
 learned is lost."""
 import json
 import math
-import time
 
 import numpy as np
 import pytest
@@ -25,6 +24,13 @@ class Diagnostics(MissionClient):
 
     def __init__(self, client):
         super().__init__(client.node, lambda t: client.executor.spin_once(timeout_sec=t))
+
+    def wait_for_heartbeats(self, client, names, timeout=60):
+        """Wait until every node in ``names`` has published a heartbeat after this call."""
+        start = len(self.statuses)
+        client.spin_until(lambda: {s.name.removesuffix(ifc.HEARTBEAT_SUFFIX)
+                                   for s in list(self.statuses)[start:]} >= set(names),
+                          timeout, f'a heartbeat from each of {sorted(names)}')
 
 
 def _set(client, node, name, value, kind):
@@ -111,7 +117,9 @@ def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
     assert not r.successful and 'broken.npz' in r.reason
     adapt = client.call(ifc.client(node, ifc.ADAPT), Trigger.Request())
     assert adapt.success
-    time.sleep(1.0)
+    # Alive after all of it: each node beats again after the last bad input (a condition,
+    # not a pause: a crashed node never beats again).
+    diag.wait_for_heartbeats(client, nodes.procs)
     assert all(nodes.alive().values()), nodes.logs()
 
 
@@ -132,7 +140,10 @@ def test_adapter_with_corrupt_archive_stays_up_and_says_why(tmp_path):
 
 
 def _observations(state_file):
-    state = json.loads(state_file.read_text())
+    try:
+        state = json.loads(state_file.read_text())
+    except (OSError, ValueError):
+        return [], []
     return state['sela']['indices'], state['sela']['generic_rewards']
 
 
@@ -144,7 +155,15 @@ def test_killed_nodes_come_back_and_the_mission_completes(graph):
     nodes, client = graph
     diag = Diagnostics(client)
     diag.go_to_pose(1.6, 1.2)
-    client.spin_until(lambda: len(diag.steps) >= 5, 200, 'five steps')
+    # Mid-mission, once it has learned a few steps and every observation it announced is
+    # on disk (the state is written off the step's critical path: wait for the write, never
+    # for a time).
+    def learned_and_saved():
+        saved = len(_observations(nodes.state_file)[0])
+        return (len(diag.steps) >= 5 and saved >= 3
+                and saved >= int(diag.steps[-1].values['observations']))
+
+    client.spin_until(learned_and_saved, 200, 'three observations announced and saved')
 
     # SIGKILL the adapter mid-mission: what it learned is on disk and comes back.
     nodes.kill('sela_adapter')
@@ -257,7 +276,14 @@ def test_archive_built_for_another_simulator_is_refused_with_the_reason(graph):
                       'the mismatch reported')
     error = next(e for e in diag.errors('sela_adapter') if 'other simulator settings' in e)
     assert 'dt' in error and '0.005' in error and 'archive' in error
-    end = time.monotonic() + 3.0
-    client.spin_until(lambda: time.monotonic() > end, 5.0)
+    # A second goal: handled (the mismatch is reported again) and still no gait sent. The
+    # report proves the adapter processed the goal, whatever the machine's load.
+    def reports():
+        return len([e for e in diag.errors('sela_adapter') if 'other simulator settings' in e])
+
+    reported = reports()
+    diag.publish_goal(0.5, 0.5)
+    client.spin_until(lambda: reports() > reported, 60,
+                      'the mismatch reported again with the second goal')
     assert not commands and not diag.steps  # nothing sent on a map of another simulator
     assert all(nodes.alive().values()), nodes.logs()
