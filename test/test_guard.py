@@ -146,6 +146,15 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
         client.spin_until(lambda: verdicts or not all(nodes.alive().values()), 30,
                           'a verdict on the overflowing outcome')
         assert all(nodes.alive().values()), nodes.logs()
+        # An outcome no gait can produce is refused with the reason, not judged.
+        prediction_pub.publish(conv.prediction_to_msg(8, np.zeros(3)))
+        outcome_pub.publish(conv.outcome_to_msg(conv.BehaviorOutcome(
+            8, np.array([1e9, 0.0, 0.0]), np.zeros(3), np.array([1e9, 0.0, 0.0]))))
+        client.spin_until(lambda: errors('outcome of command 8 refused'), 30,
+                          'the implausible outcome refused')
+        assert 'outcome.max_displacement 2 m' in errors('outcome of command 8 refused')[0]
+        assert not [v for v in verdicts if ('behavior_id', '8') in
+                    [(kv.key, kv.value) for kv in v.values]]
         # Both still serve: the planner answers a plan request with the reason it cannot plan.
         answer = client.call(node.create_client(GetPlan, '/planner/make_plan'),
                              GetPlan.Request(), timeout=30)

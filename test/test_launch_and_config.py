@@ -115,6 +115,7 @@ def test_config_is_keyed_by_node_name_with_ros_parameters():
 def test_config_defaults_are_the_code_defaults():
     """One source of truth: the YAML says what the code would do without it."""
     from sela_ros.core.damage_detection import DetectorConfig
+    from sela_ros.core.plausibility import OutcomeLimits
     from sela_ros.core.sela import SELAConfig
 
     config = yaml.safe_load((ROOT / 'config' / 'sela.yaml').read_text())
@@ -125,3 +126,4 @@ def test_config_defaults_are_the_code_defaults():
     detector = config['damage_detector']['ros__parameters']
     for key, value in vars(DetectorConfig()).items():
         assert detector[f'detection.{key}'] == value, key
+    assert detector['outcome.max_displacement'] == OutcomeLimits().max_displacement

@@ -13,6 +13,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
+from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard, guard_parameters
@@ -37,6 +38,9 @@ def parameters(defaults):
              'next one', low=0, high=1000),
         Spec('detection.max_sigma', defaults.max_sigma, 'only predictions at most this unsure '
              '(std) are judged', low=0.0, high=10.0, unit=' m'),
+        Spec('outcome.max_displacement', OutcomeLimits().max_displacement, 'an outcome that '
+             'moves the robot further than this in one gait is refused, not judged', low=1e-3,
+             high=1e6, unit=' m'),
         Spec('heartbeat.timeout', 5.0, 'wall time without a heartbeat before a node is reported '
              'silent', low=0.1, high=3600.0, unit=' s'),
         Spec('heartbeat.nodes', [ifc.SIM_BRIDGE, ifc.PLANNER, ifc.SELA_ADAPTER],
@@ -51,6 +55,7 @@ class DamageDetectorNode(Node):
         self.detector = DamageDetector(self._config_from({}))
         self.predictions = {}  # behaviour id -> (gr, sigma), waiting for the outcome
         self.outcomes = {}  # behaviour id -> outcome, waiting for the prediction
+        self.limits = OutcomeLimits(float(values['outcome.max_displacement']))
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
 
         self.diag_pub = ifc.publisher(self, ifc.DIAGNOSTICS)
@@ -111,6 +116,9 @@ class DamageDetectorNode(Node):
                 self.watch.timeout = float(p.value)
         if config is not None:
             self.detector = DamageDetector(config)
+        for p in params:
+            if p.name == 'outcome.max_displacement':
+                self.limits = OutcomeLimits(p.value)
         return SetParametersResult(successful=True)
 
     @guard
@@ -132,6 +140,20 @@ class DamageDetectorNode(Node):
             outcome = conv.outcome_from_msg(msg)
         except conv.MessageError as exc:
             self.get_logger().error(f'ignored outcome: {exc}')
+            return
+        try:
+            check_outcome(outcome.generic_reward, outcome.start_pose, outcome.end_pose,
+                          self.limits)
+        except ImplausibleOutcome as exc:
+            # Not judged, not kept (the adapter refuses it too, with the same limit): an
+            # outcome no gait can produce says nothing about damage. The prediction stays
+            # for the outcome of the command sent again.
+            message = f'outcome of command {outcome.behavior_id} refused: {exc}'
+            self.get_logger().error(message)
+            self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
+                DiagnosticStatus.ERROR, STATUS_NAME, message,
+                {'behavior_id': outcome.behavior_id}, hardware_id='hexapod'),
+                self.get_clock().now().to_msg()))
             return
         prediction = self.predictions.pop(outcome.behavior_id, None)
         if prediction is not None:
