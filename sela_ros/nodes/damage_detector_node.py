@@ -114,11 +114,10 @@ class DamageDetectorNode(Node):
         for p in params:
             if p.name == 'heartbeat.timeout':
                 self.watch.timeout = float(p.value)
+            elif p.name == 'outcome.max_displacement':
+                self.limits = OutcomeLimits(float(p.value))
         if config is not None:
             self.detector = DamageDetector(config)
-        for p in params:
-            if p.name == 'outcome.max_displacement':
-                self.limits = OutcomeLimits(p.value)
         return SetParametersResult(successful=True)
 
     @guard
