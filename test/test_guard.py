@@ -9,7 +9,7 @@ from std_srvs.srv import Trigger
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
-from sela_ros.nodes.qos import COMMAND_QOS, LATCHED_QOS, OUTCOME_QOS, STATE_QOS
+from sela_ros.nodes.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 
 from ros_graph import Client, NodeProcesses
 
@@ -104,11 +104,12 @@ def test_a_service_answers_failure_and_a_parameter_change_is_refused():
 
 @pytest.mark.dds
 def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
-    """A map file with wrongly typed fields, a negative lookahead given at start-up, and a
-    prediction and outcome whose yaw difference overflows (two finite values)."""
+    """A map file with wrongly typed fields, and a prediction and outcome whose yaw
+    difference overflows (two finite values). (A negative ``planner.lookahead`` given at
+    start-up now stops the planner with exit status 2 and the reason: test_params.py.)"""
     bad_map = tmp_path / 'bad_map.yaml'
     bad_map.write_text('resolution: 0.05\norigin: 5\nwidth: 4\nheight: 4\nobstacles: null\n')
-    nodes = NodeProcesses({'planner': {'map.file': str(bad_map), 'planner.lookahead': -1.0}},
+    nodes = NodeProcesses({'planner': {'map.file': str(bad_map)}},
                           names=('planner', 'damage_detector'))
     client = Client()
     statuses = []
@@ -116,8 +117,6 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
         node = client.node
         node.create_subscription(DiagnosticArray, '/diagnostics',
                                  lambda m: statuses.extend(m.status), STATE_QOS)
-        goal_pub = node.create_publisher(conv.PoseStamped, '/goal_pose', LATCHED_QOS)
-        odom_pub = node.create_publisher(conv.Odometry, '/hexapod/odom', STATE_QOS)
         prediction_pub = node.create_publisher(Float64MultiArray, '/sela/prediction',
                                                COMMAND_QOS)
         outcome_pub = node.create_publisher(Float64MultiArray,
@@ -127,15 +126,16 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
             return [s.message for s in statuses
                     if s.level == DiagnosticStatus.ERROR and part in s.message]
 
-        client.spin_until(lambda: odom_pub.get_subscription_count() > 0
-                          and prediction_pub.get_subscription_count() > 0
+        client.spin_until(lambda: prediction_pub.get_subscription_count() > 0
                           and outcome_pub.get_subscription_count() > 0, 60, 'the two nodes')
-        client.spin_until(lambda: errors('bad_map.yaml'), 30, 'the bad map file reported')
-        assert 'TypeError' in errors('bad_map.yaml')[0]
-        odom_pub.publish(conv.odometry_msg(np.zeros(3), stamp=0.0))
-        goal_pub.publish(conv.pose_stamped((1.0, 1.0), frame_id='odom'))
-        client.spin_until(lambda: errors('lookahead must be'), 30,
-                          'the planning error of the negative lookahead reported')
+        # (Said once at start-up, on /diagnostics and in the log: the log keeps it.)
+        assert 'TypeError' in nodes.logs()['planner.log']
+        assert 'planning on the map.* parameters instead' in nodes.logs()['planner.log']
+        # It plans on the map.* parameters (bounds -1..3 m): a path to (2.5, 2.5).
+        request = GetPlan.Request(start=conv.pose_stamped((0.0, 0.0), frame_id='odom'),
+                                  goal=conv.pose_stamped((2.5, 2.5), frame_id='odom'))
+        plan = client.call(node.create_client(GetPlan, '/planner/make_plan'), request, 30)
+        assert plan.plan.poses, nodes.logs()
 
         verdicts = []
         node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: verdicts.extend(
@@ -155,10 +155,9 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
         assert 'outcome.max_displacement 2 m' in errors('outcome of command 8 refused')[0]
         assert not [v for v in verdicts if ('behavior_id', '8') in
                     [(kv.key, kv.value) for kv in v.values]]
-        # Both still serve: the planner answers a plan request with the reason it cannot plan.
-        answer = client.call(node.create_client(GetPlan, '/planner/make_plan'),
-                             GetPlan.Request(), timeout=30)
-        assert not answer.plan.poses
+        # Both still serve: the planner answers a plan request.
+        answer = client.call(node.create_client(GetPlan, '/planner/make_plan'), request, 30)
+        assert answer.plan.poses
         assert all(nodes.alive().values()), nodes.logs()
     finally:
         client.close()
