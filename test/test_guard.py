@@ -2,14 +2,13 @@
 node keeps running (unit tests on a stand-in node, then real nodes over DDS)."""
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.srv import GetPlan
-from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
-from sela_ros.nodes.qos import COMMAND_QOS, OUTCOME_QOS, STATE_QOS
 
 from ros_graph import Client, NodeProcesses
 
@@ -115,12 +114,9 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
     statuses = []
     try:
         node = client.node
-        node.create_subscription(DiagnosticArray, '/diagnostics',
-                                 lambda m: statuses.extend(m.status), STATE_QOS)
-        prediction_pub = node.create_publisher(Float64MultiArray, '/sela/prediction',
-                                               COMMAND_QOS)
-        outcome_pub = node.create_publisher(Float64MultiArray,
-                                            '/hexapod/behavior_outcome', OUTCOME_QOS)
+        ifc.subscription(node, ifc.DIAGNOSTICS, lambda m: statuses.extend(m.status))
+        prediction_pub = ifc.publisher(node, ifc.PREDICTION)
+        outcome_pub = ifc.publisher(node, ifc.OUTCOME)
 
         def errors(part):
             return [s.message for s in statuses
@@ -134,12 +130,12 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
         # It plans on the map.* parameters (bounds -1..3 m): a path to (2.5, 2.5).
         request = GetPlan.Request(start=conv.pose_stamped((0.0, 0.0), frame_id='odom'),
                                   goal=conv.pose_stamped((2.5, 2.5), frame_id='odom'))
-        plan = client.call(node.create_client(GetPlan, '/planner/make_plan'), request, 30)
+        plan = client.call(ifc.client(node, ifc.MAKE_PLAN), request, 30)
         assert plan.plan.poses, nodes.logs()
 
         verdicts = []
-        node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: verdicts.extend(
-            s for s in m.status if s.name == 'damage_detector: prediction error'), STATE_QOS)
+        ifc.subscription(node, ifc.DIAGNOSTICS, lambda m: verdicts.extend(
+            s for s in m.status if s.name == ifc.DETECTOR_STATUS))
         prediction_pub.publish(conv.prediction_to_msg(7, np.array([0.0, 0.0, 1e308])))
         outcome_pub.publish(conv.outcome_to_msg(conv.BehaviorOutcome(
             7, np.array([0.0, 0.0, -1e308]), np.zeros(3), np.zeros(3))))
@@ -156,7 +152,7 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
         assert not [v for v in verdicts if ('behavior_id', '8') in
                     [(kv.key, kv.value) for kv in v.values]]
         # Both still serve: the planner answers a plan request.
-        answer = client.call(node.create_client(GetPlan, '/planner/make_plan'), request, 30)
+        answer = client.call(ifc.client(node, ifc.MAKE_PLAN), request, 30)
         assert answer.plan.poses
         assert all(nodes.alive().values()), nodes.logs()
     finally:

@@ -4,7 +4,7 @@ rclpy lets an exception raised by a subscription, timer, service or parameter ca
 escape ``spin()``, and the node process dies: one malformed message, one unforeseen value,
 and the robot loses a node (and, before it is restarted, whatever it was doing). Each
 callback of a node is decorated with one of these; an exception becomes an ERROR on
-``/diagnostics`` (name ``<node>: <what>``, the exception type and message) and in the log
+``diagnostics`` (name ``<node>: <what>``, the exception type and message) and in the log
 (with the traceback), and the node goes on with the next message:
 
 * :func:`guard` for subscriptions, timers and future done-callbacks (nothing to return);
@@ -16,11 +16,11 @@ callback of a node is decorated with one of these; an exception becomes an ERROR
 import functools
 import traceback
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 
+from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
-from sela_ros.nodes.qos import STATE_QOS
 
 MAX_TEXT = 400  # characters of an exception message kept (a fuzzed message can be huge)
 
@@ -45,8 +45,7 @@ def report_exception(node, what, exc):
     try:
         pub = getattr(node, '_guard_diagnostics', None)
         if pub is None:
-            pub = node._guard_diagnostics = node.create_publisher(
-                DiagnosticArray, '/diagnostics', STATE_QOS)
+            pub = node._guard_diagnostics = ifc.publisher(node, ifc.DIAGNOSTICS)
         pub.publish(diagnostic_array(
             diagnostic_status(DiagnosticStatus.ERROR, f'{node.get_name()}: {what}', line,
                               {'exception': type(exc).__name__}),
