@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from sela_ros.core import N_PARAMS
+from sela_ros.core.persistence import atomic_write
 from sim_bridge.damage import parse_damage
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.hexapod import Hexapod, evaluate_gait, simulator_settings
@@ -163,9 +164,7 @@ def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
         except Exception:  # corrupt or truncated: recompute below
             pass
     gr, fallen = compute_oracle_table(params, damage, workers, dt, gait_duration)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + f'.{os.getpid()}.tmp.npz')
-    np.savez(tmp, generic_reward=gr, fallen=fallen,
-             damage=np.array(parse_damage(damage).canonical()))
-    os.replace(tmp, path)
+    atomic_write(path, lambda handle: np.savez(
+        handle, generic_reward=gr, fallen=fallen,
+        damage=np.array(parse_damage(damage).canonical())))
     return gr, fallen

@@ -25,6 +25,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from sela_ros.core.persistence import atomic_write_bytes
 from sela_ros.experiments import arguments, hexapod
 
 LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right', 'rear_right')
@@ -111,10 +112,7 @@ def run(args, progress=None) -> dict:
                         oracle_cache=args.oracle_cache, replicates=args.replicates,
                         seed=args.seed, workers=args.workers)
                     doc = hexapod.run(cell_args)
-                    where.mkdir(parents=True, exist_ok=True)
-                    tmp = path.with_suffix('.tmp')
-                    tmp.write_text(json.dumps(doc, indent=1))
-                    os.replace(tmp, path)
+                    atomic_write_bytes(path, json.dumps(doc, indent=1).encode())
                 doc = json.loads(path.read_text())
                 cells.append({'archive': Path(archive).stem, 'damage': damage,
                               'goal': list(goal), 'methods': doc['methods'],

@@ -25,6 +25,7 @@ import os
 import sys
 from dataclasses import dataclass
 
+from sela_ros.core.persistence import atomic_write_bytes
 from sela_ros.experiments import arguments
 
 
@@ -83,10 +84,7 @@ def main(argv=None) -> int:
               disable=args.quiet) as bar:
         doc = module.run(args, progress=lambda: bar.update(1))
     results_path = os.path.join(args.out, 'results.json')
-    tmp = results_path + '.tmp'
-    with open(tmp, 'w') as f:
-        json.dump(doc, f, indent=1)
-    os.replace(tmp, results_path)
+    atomic_write_bytes(results_path, json.dumps(doc, indent=1).encode())
 
     from sela_ros.experiments.figures import plot_methods
 
