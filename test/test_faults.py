@@ -83,8 +83,7 @@ def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
 
     # Goals: off the map, in another frame, NaN.
     diag.wait_until_ready()
-    client.spin_until(lambda: diag._goal_pub.get_subscription_count() >= 2, 30,
-                      'the planner and the adapter to hear goals')
+    diag.wait_for_goal_listeners(2)  # the planner and the adapter
     diag.publish_goal(40.0, 0.0)
     client.spin_until(lambda: any('off the map' in e for e in diag.errors('planner')), 30,
                       'goal off the map reported')

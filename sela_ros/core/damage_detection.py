@@ -18,6 +18,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from sela_ros.core.geometry import wrap_angle
 from sela_ros.core.validation import check_number
 
 
@@ -59,9 +60,8 @@ def prediction_error(predicted_gr, observed_gr, yaw_weight):
     dy = float(observed_gr[1]) - float(predicted_gr[1])
     error = math.hypot(dx, dy)
     if len(predicted_gr) > 2 and len(observed_gr) > 2:
-        dyaw = math.remainder(math.remainder(float(observed_gr[2]), 2 * math.pi)
-                              - math.remainder(float(predicted_gr[2]), 2 * math.pi),
-                              2 * math.pi)
+        # Each wrapped first: a huge angle's remainder keeps its precision.
+        dyaw = wrap_angle(wrap_angle(float(observed_gr[2])) - wrap_angle(float(predicted_gr[2])))
         error += yaw_weight * abs(dyaw)
     return error
 

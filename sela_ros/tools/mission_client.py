@@ -133,6 +133,11 @@ class MissionClient:
             return ifc.SELA_ADAPTER in talkers and self._goal_pub.get_subscription_count() > 0
         self.spin_until(ready, timeout, 'the sela_adapter')
 
+    def wait_for_goal_listeners(self, count, timeout=60.0):
+        """Wait until ``count`` nodes hear goals (e.g. the planner and the adapter)."""
+        self.spin_until(lambda: self._goal_pub.get_subscription_count() >= count, timeout,
+                        f'{count} subscriber(s) of {self.name(ifc.GOAL.name)}')
+
     def go_to_pose(self, x, y, frame_id='odom', timeout=60.0, resend_period=2.0):
         """Send the goal (x, y); returns once the adapter has taken it (resent until then:
         ``goal_pose`` is volatile, as RViz sends it)."""
