@@ -150,3 +150,52 @@ def test_map_file_errors(tmp_path):
     good.write_text('resolution: 0.1\norigin: [-1, -1]\nwidth: 2\nheight: 2\n'
                     'obstacles: [0, 0, 0.5, 0.5]\n')
     assert load_map_file(good).occupied.sum() > 0
+
+
+class _FakeRobot:
+    """Gait i moves the robot by ``grs[i]`` in its frame; gait ``falls`` tips it over."""
+
+    def __init__(self, grs, falls=None):
+        self.grs, self.falls, self.pose, self.resets = grs, falls, np.zeros(3), 0
+
+    def true_pose(self):
+        return self.pose.copy()
+
+    def reset(self):
+        self.pose, self.resets = np.zeros(3), self.resets + 1
+
+    def execute(self, params):
+        from types import SimpleNamespace
+
+        from sela_ros.core.geometry import se2_compose
+
+        index = int(params[0])
+        self.pose = se2_compose(self.pose, self.grs[index])
+        return SimpleNamespace(observed_generic_reward=self.grs[index], observed_end=self.pose,
+                               fallen=index == self.falls, true_end=self.pose)
+
+
+def test_run_mission_drives_the_stepper_to_the_goal_and_resets_a_fallen_robot():
+    from types import SimpleNamespace
+
+    from sela_ros.core.mission import run_mission
+    from sela_ros.core.planning import straight_line_planner
+
+    rng = np.random.default_rng(3)
+    descriptors = rng.random((40, 2))
+    grs = np.column_stack([descriptors * 0.4 - 0.1, np.zeros(40)])
+    # The gait that lands nearest the first waypoint (0.3, 0) tips the robot over.
+    falls = int(np.argmin(np.hypot(grs[:, 0] - 0.3, grs[:, 1])))
+    params = np.zeros((40, 36))
+    params[:, 0] = np.arange(40)
+    archive = SimpleNamespace(params=params, generic_reward=grs,
+                              normalised_descriptors=lambda: descriptors)
+    robot = _FakeRobot(grs, falls)
+    steps = []
+    success, logic = run_mission(robot, archive, (1.0, 0.0), straight_line_planner,
+                                 lookahead=0.3, max_steps=30, adapt_on_start=True,
+                                 reset_on_fall=True, on_step=steps.append)
+    assert success and steps == logic.records
+    assert logic.records[0].behavior_index == falls and logic.records[0].fallen
+    assert robot.resets >= 1 and logic.records[1].pose == [0.0, 0.0, 0.0]  # from the start
+    assert np.hypot(*(robot.pose[:2] - (1.0, 0.0))) < 0.1
