@@ -24,8 +24,8 @@ from dataclasses import replace
 import numpy as np
 
 from sela_ros.core.learning import MissionLogic
+from sela_ros.core.mission_state import mission_snapshot, restore_mission
 from sela_ros.core.mission_status import detection_status, goal_status, mission_status
-from sela_ros.core.persistence import mission_snapshot, restore_mission
 from sela_ros.core.stepper_io import (
     AdaptRequested,
     AskedPlan,
@@ -385,7 +385,7 @@ class MissionStepper:
         return mission_snapshot(self)
 
     def restore(self, snapshot, now):
-        """Take back a :meth:`snapshot` (see :func:`~sela_ros.core.persistence.
+        """Take back a :meth:`snapshot` (see :func:`~sela_ros.core.mission_state.
         restore_mission`); returns the commands (reports) it gives."""
         return restore_mission(self, snapshot, now)
 

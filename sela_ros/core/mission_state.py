@@ -1,0 +1,89 @@
+"""What of a mission goes to the state file, and how it comes back. ROS-free.
+
+:func:`mission_snapshot` is the ``sela`` (what was learned) and ``mission`` (where the
+mission stands) sections of the adapter's state file (:mod:`sela_ros.core.persistence`
+writes it); :func:`restore_mission` takes them back into a fresh stepper: what was learned
+always, a mission in progress only if the robot turns out to be where it was.
+"""
+import numpy as np
+
+from sela_ros.core.sela import Decision
+from sela_ros.core.stepper_io import Level, PendingStep, Report, State
+
+
+def mission_snapshot(stepper):
+    """What a :class:`~sela_ros.core.stepper.MissionStepper` learned and where its mission
+    stands, as JSON-able values (the ``sela`` and ``mission`` sections of the state file)."""
+    p = stepper.pending
+    pending = None
+    if p is not None and p.decision is not None and stepper.state in (State.EXECUTING,
+                                                                      State.VERDICT):
+        d = p.decision
+        pending = {'id': p.behavior_id, 'step': p.step, 'index': int(d.index),
+                   'pose': _list(p.pose), 'waypoint': _list(d.waypoint),
+                   'predicted_gr': _list(d.predicted_gr),
+                   'predicted_pose': _list(d.predicted_pose), 'reward': d.reward,
+                   'sigma': d.sigma}
+    last = stepper.logic.last
+    pose = stepper.current_pose()
+    return {'sela': stepper.sela.state_dict(), 'mission': {
+        'state': stepper.state.value, 'steps': stepper.steps,
+        'failed_steps': stepper.failed_steps,
+        'goal': None if stepper.goal is None else _list(stepper.goal),
+        'pose': None if pose is None else _list(pose),
+        'adapting': stepper.logic.adapting, 'adaptations': stepper.logic.adaptations,
+        'last': None if last is None else [int(last[0]), _list(last[1])],
+        'next_id': stepper.next_id, 'pending': pending, 'reset_needed': stepper.reset_needed}}
+
+
+def restore_mission(stepper, snapshot, now):
+    """Take back what :func:`mission_snapshot` saved into ``stepper``; returns the
+    commands (reports) it gives. Raises KeyError, TypeError or ValueError on a bad one.
+
+    What was learned always comes back. A mission in progress comes back only if the
+    robot turns out to be where it was (the first odometry decides); a gait in flight
+    waits for its outcome.
+    """
+    stepper.sela.load_state_dict(snapshot['sela'])
+    m = snapshot['mission']
+    stepper.logic.adapting = bool(m['adapting'])
+    stepper.logic.adaptations = int(m['adaptations'])
+    last = m['last']
+    stepper.logic.last = None if last is None else (int(last[0]), np.array(last[1], float))
+    stepper.next_id = int(m['next_id'])
+    stepper.failed_steps = int(m.get('failed_steps', 0))
+    state = State(m['state'])
+    if m['goal'] is None or state in (State.IDLE, State.DONE):
+        return []
+    stepper.goal = np.array(m['goal'], dtype=float)
+    stepper.sela.set_goal(stepper.goal)
+    stepper.steps = int(m['steps'])
+    stepper.reset_needed = bool(m.get('reset_needed', False))
+    pending = m.get('pending')
+    if pending is not None and state is State.EXECUTING:
+        d = Decision(index=int(pending['index']), waypoint=np.array(pending['waypoint']),
+                     predicted_gr=np.array(pending['predicted_gr']),
+                     predicted_pose=np.array(pending['predicted_pose']),
+                     reward=float(pending['reward']), sigma=float(pending['sigma']))
+        stepper.pending = PendingStep(
+            step=stepper.steps, pose=np.array(pending['pose']), t_start=now,
+            deadline=now + stepper.config.outcome_timeout, waypoint=d.waypoint, decision=d,
+            behavior_id=int(pending['id']), t_sent=now)
+        stepper.resume = stepper.pending.pose
+        stepper.state = State.EXECUTING  # the outcome may be waiting (it is latched)
+        return [Report(Level.WARN, f'resuming: waiting for the outcome of command '
+                       f"{pending['id']}")]
+    if m['pose'] is None:
+        stepper.goal = None
+        return [Report(Level.ERROR, 'mission dropped: the state file has no pose to '
+                       'check the robot against; send the goal again')]
+    if pending is not None:
+        stepper.last_id = int(pending['id'])  # a late verdict on it still counts
+    stepper.resume = np.array(m['pose'], dtype=float)
+    stepper.state = State.READY
+    return [Report(Level.WARN, f'mission to ({stepper.goal[0]:.2f}, {stepper.goal[1]:.2f}) '
+                   'restored: checking that the robot is where it was')]
+
+
+def _list(values):
+    return np.asarray(values, dtype=float).tolist()
