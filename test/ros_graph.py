@@ -23,10 +23,11 @@ class NodeProcesses:
     """The package's nodes as separate processes, started like ``ros2 run sela_ros <n>``."""
 
     def __init__(self, overrides=None, names=('sim_bridge', 'planner', 'damage_detector',
-                                               'sela_adapter')):
+                                               'sela_adapter'), namespace=''):
         self.env = ros_environment(domain_id=int(os.environ['ROS_DOMAIN_ID']))
         self.logdir = Path(tempfile.mkdtemp(prefix='sela_nodes_'))
         self.procs = {}
+        self.namespace = namespace
         self.overrides = {k: dict(v) for k, v in (overrides or {}).items()}
         # Each graph learns into its own state file: no test resumes another's learning.
         self.state_file = self.logdir / 'sela_adapter_state.json'
@@ -37,6 +38,8 @@ class NodeProcesses:
 
     def start(self, name):
         cmd = [str(executable(name)), '--ros-args', '--params-file', str(CONFIG)]
+        if self.namespace:
+            cmd += ['-r', f'__ns:={self.namespace}']
         for key, value in self.overrides.get(name, {}).items():
             cmd += ['-p', f'{key}:={value}']
         log = open(self.logdir / f'{name}.log', 'a')  # noqa: SIM115

@@ -205,3 +205,29 @@ def test_damage_changed_at_run_time_restarts_adaptation(graph):
     detections_after = sum(level == DiagnosticStatus.ERROR for level, _ in watcher.verdicts)
     assert detections_after > detections_before
     assert all(nodes.alive().values()), nodes.logs()
+
+
+def test_a_namespaced_stack_runs_its_mission_under_its_namespace():
+    """Every name is relative: ``__ns:=/robot1`` moves the whole graph, and a client given
+    the namespace drives it. (The parameters file's node keys do not match namespaced
+    nodes, so they run on the code's defaults here.)"""
+    nodes = NodeProcesses(namespace='/robot1')
+    client = Client()
+    try:
+        mission = MissionClient(client.node, lambda t: client.executor.spin_once(timeout_sec=t),
+                                namespace='/robot1')
+        mission.go_to_pose(0.8, 0.0, timeout=120)
+        client.spin_until(mission.get_result, 300, 'the end of the namespaced mission')
+        assert mission.get_result().success, nodes.logs()
+        topics = {name for name, _ in client.node.get_topic_names_and_types()}
+        services = {name for name, _ in client.node.get_service_names_and_types()}
+        for topic in ifc.TOPICS:
+            if topic is not ifc.CLOCK:
+                assert '/robot1' + topic.root_name in topics, topic
+                assert topic.root_name not in topics, topic  # nothing left in the root
+        for service in ifc.SERVICES:
+            assert '/robot1' + service.root_name in services, service
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
