@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 PKG_SOURCES := $(shell find sela_ros sim_bridge -name '*.py' -o -name '*.urdf' -o -name '*.npz' 2>/dev/null) \
-	setup.py setup.cfg package.xml resource/sela_ros $(wildcard config/*.yaml config/*.xml launch/*.py rviz/*.rviz)
+	setup.py setup.cfg package.xml resource/sela_ros $(wildcard config/*.yaml config/*.xml config/maps/* launch/*.py rviz/*.rviz)
 
 # DDS stays on loopback: Fast DDS with config/fastdds_loopback.xml (UDP on 127.0.0.1 and
 # shared memory only; SYSTEM_DEFAULT is the discovery range in which the rmw applies the

@@ -28,6 +28,8 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config',
          sorted(glob('config/*.yaml') + glob('config/*.xml'))),
+        ('share/' + package_name + '/config/maps', sorted(glob('config/maps/*.yaml')
+                                                          + glob('config/maps/*.pgm'))),
         ('share/' + package_name + '/launch', sorted(glob('launch/*.py'))),
         ('share/' + package_name + '/rviz', sorted(glob('rviz/*.rviz'))),
         # The intact model (robot_state_publisher's); the simulator publishes the damaged one.

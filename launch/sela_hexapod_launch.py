@@ -4,10 +4,14 @@ Usage: ``ros2 launch sela_ros sela_hexapod_launch.py [damage:=...] [seed:=...]
 [namespace:=/robot1] [rviz:=true]``.
 
 Arguments: damage (default remove:middle_right), seed (0), gui (false), params_file (the
-installed config/sela.yaml), archive ('' = the shipped archive), namespace ('' = the root:
-every node, topic and service of the stack goes under it, so two robots can share a domain),
-rviz (false; true opens RViz with share/sela_ros/rviz/sela.rviz). The goal command is in
-the README ("Send a goal").
+installed config/sela.yaml), archive ('' = the shipped archive), map (the planner's map
+YAML, map_server's format or the project's, set as its map.file; '' = no file: the map.*
+parameters), namespace ('' = the root: every node, topic and service of the stack goes
+under it, so two robots can share a domain), rviz (false; true opens RViz with
+share/sela_ros/rviz/sela.rviz). The obstacle courses are installed in
+``$(ros2 pkg prefix sela_ros)/share/sela_ros/config/maps/`` (wall_gap.yaml, corridor.yaml,
+maze.yaml); a map published on ``map`` (by map_server) replaces the planner's. The goal
+command is in the README ("Send a goal").
 
 /tf and /tf_static are remapped to the namespace's ``tf``/``tf_static`` for
 robot_state_publisher and RViz (as nav2 does), so each robot has its own tree. The
@@ -49,6 +53,9 @@ def generate_launch_description():
         DeclareLaunchArgument('rviz', default_value='false',
                               description='true: open RViz on the robot, the path and '
                                           "SELA's markers"),
+        DeclareLaunchArgument('map', default_value='',
+                              description="planner map YAML, e.g. <share>/config/maps/maze.yaml "
+                              "(sets planner map.file; '' = the map.* parameters)"),
     ]
     nodes = [
         Node(package='sela_ros', executable='sim_bridge', name='sim_bridge', output='screen',
@@ -56,7 +63,7 @@ def generate_launch_description():
                                   'seed': LaunchConfiguration('seed'),
                                   'sim.gui': LaunchConfiguration('gui')}]),
         Node(package='sela_ros', executable='planner', name='planner', output='screen',
-             parameters=[params]),
+             parameters=[params, {'map.file': LaunchConfiguration('map')}]),
         Node(package='sela_ros', executable='damage_detector', name='damage_detector',
              output='screen', parameters=[params]),
         Node(package='sela_ros', executable='sela_adapter', name='sela_adapter',

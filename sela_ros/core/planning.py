@@ -1,18 +1,29 @@
-"""The reward selection layer: occupancy grid, 8-connected A*, waypoint selection.
+"""The reward selection layer: occupancy grid, optimal 8-connected paths, waypoint selection.
 
 At each SELA step the planner gives a path from the robot to the goal and
 :func:`next_waypoint` picks the point ``lookahead`` metres along it; the specialised reward
 of a behaviour is then minus the distance from that waypoint to where it is predicted to
 take the robot.
+
+:class:`GridPlanner` reads the path off a cost-to-go field computed once per goal and map
+(:mod:`sela_ros.core.costfield`), so a step costs milliseconds on a million-cell map;
+:func:`astar` and :class:`AStarPlanner` (A* from scratch at every call) are kept as the
+reference its paths are tested against and benchmarked beside
+(``benchmarks/bench_planning.py``).
 """
 from __future__ import annotations
 
 import heapq
 import math
+from collections import OrderedDict
 
 import numpy as np
+from scipy import ndimage
+
+from sela_ros.core.costfield import CostField, grid_graph
 
 SQRT2 = math.sqrt(2.0)
+DEFAULT_SMOOTH_HORIZON = 5.0  # m of path smoothed by GridPlanner (see there)
 _MOVES = [(1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0),
           (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2), (-1, -1, SQRT2)]
 
@@ -43,10 +54,11 @@ class OccupancyGrid:
         resolution: cell size in metres.
         origin: world ``(x, y)`` of the corner of cell (0, 0).
         occupied_threshold: for integer grids, the value from which a cell is occupied.
+        unknown_is_occupied: for integer grids, whether unknown (< 0) cells are occupied.
     """
 
     def __init__(self, occupancy, resolution: float, origin=(0.0, 0.0),
-                 occupied_threshold: int = 50):
+                 occupied_threshold: int = 50, unknown_is_occupied: bool = True):
         occ = np.asarray(occupancy)
         if occ.ndim != 2 or occ.shape[0] < 1 or occ.shape[1] < 1:
             raise ValueError(f'occupancy must be a non-empty 2-D array, got shape {occ.shape}')
@@ -58,7 +70,7 @@ class OccupancyGrid:
         if occ.dtype == bool:
             self.occupied = occ.copy()
         else:
-            self.occupied = (occ >= occupied_threshold) | (occ < 0)
+            self.occupied = (occ >= occupied_threshold) | ((occ < 0) & bool(unknown_is_occupied))
         self.resolution = float(resolution)
         self.origin = origin
 
@@ -199,27 +211,58 @@ def astar(grid: OccupancyGrid, start_xy, goal_xy) -> np.ndarray:
 
 def line_is_free(grid: OccupancyGrid, a, b) -> bool:
     """Whether the segment a-b crosses only free cells (sampled at resolution / 4)."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    n = max(2, int(math.ceil(np.linalg.norm(b - a) / (grid.resolution / 4.0))) + 1)
-    pts = a[None] + np.linspace(0.0, 1.0, n)[:, None] * (b - a)[None]
-    cells = np.floor((pts - grid.origin) / grid.resolution).astype(int)
-    return all(grid.is_free(tuple(c)) for c in cells)
+    ax, ay = float(a[0]) - grid.origin[0], float(a[1]) - grid.origin[1]
+    dx, dy = float(b[0]) - float(a[0]), float(b[1]) - float(a[1])
+    res = grid.resolution
+    n = max(2, int(math.ceil(math.hypot(dx, dy) / (res / 4.0))) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    ix = np.floor((ax + t * dx) / res).astype(np.intp)
+    iy = np.floor((ay + t * dy) / res).astype(np.intp)
+    h, w = grid.occupied.shape
+    # The map is a rectangle: a segment whose ends are on it stays on it.
+    if not (0 <= ix[0] < w and 0 <= iy[0] < h and 0 <= ix[-1] < w and 0 <= iy[-1] < h):
+        return False
+    return not grid.occupied[iy, ix].any()
 
 
-def smooth_path(grid: OccupancyGrid, path) -> np.ndarray:
+def smooth_path(grid: OccupancyGrid, path, horizon: float = math.inf) -> np.ndarray:
     """Shortcut a grid path by line of sight (string pulling): drops the 45-degree zigzags
-    of 8-connected paths, so that the waypoint points where the robot should really go."""
+    of 8-connected paths, so that the waypoint points where the robot should really go.
+
+    From each kept point the next kept point is found by galloping along the path (1, 2, 4,
+    ... points ahead while the line stays free) then bisecting: O(log n) line checks per
+    kept point instead of O(n), which keeps a step in milliseconds on paths of thousands of
+    cells. Every segment returned is checked free (the first one, to the adjacent cell of an
+    8-connected path, is free by construction).
+
+    Smoothing is greedy from the start, so stopping once the smoothed part is ``horizon``
+    metres long (the rest of the path kept as it is) changes nothing before that point: a
+    waypoint taken within the horizon is the one full smoothing gives.
+    """
     path = np.asarray(path, dtype=float)
-    if len(path) <= 2:
+    n = len(path)
+    if n <= 2:
         return path
     out = [path[0]]
-    i = 0
-    while i < len(path) - 1:
-        j = len(path) - 1
-        while j > i + 1 and not line_is_free(grid, path[i], path[j]):
-            j -= 1
-        out.append(path[j])
-        i = j
+    i, length = 0, 0.0
+    while i < n - 1:
+        good, step = i + 1, 1
+        while good < n - 1:
+            ahead = min(good + step, n - 1)
+            if not line_is_free(grid, path[i], path[ahead]):
+                while ahead - good > 1:  # bisect: good is visible, ahead is not
+                    mid = (good + ahead) // 2
+                    if line_is_free(grid, path[i], path[mid]):
+                        good = mid
+                    else:
+                        ahead = mid
+                break
+            good, step = ahead, step * 2
+        out.append(path[good])
+        length += math.dist(path[i], path[good])
+        i = good
+        if length >= horizon:
+            return np.vstack([np.array(out), path[i + 1:]])
     return np.array(out)
 
 
@@ -263,14 +306,10 @@ def inflate(grid: OccupancyGrid, radius: float) -> OccupancyGrid:
     r = int(math.floor(radius / grid.resolution + 1e-9))
     if r == 0 or not grid.occupied.any():
         return grid
-    offsets = [(dx, dy) for dx in range(-r, r + 1) for dy in range(-r, r + 1)
-               if dx * dx + dy * dy <= r * r]
-    occupied = grid.occupied.copy()
-    ys, xs = np.nonzero(grid.occupied)
-    h, w = occupied.shape
-    for dx, dy in offsets:
-        occupied[np.clip(ys + dy, 0, h - 1), np.clip(xs + dx, 0, w - 1)] = True
-    return OccupancyGrid(occupied, grid.resolution, grid.origin)
+    # A cell is in the margin when an occupied cell lies within r cells (a disc): the exact
+    # Euclidean distance transform does it in one pass whatever r is.
+    distance = ndimage.distance_transform_edt(~grid.occupied)
+    return OccupancyGrid(distance <= r + 1e-9, grid.resolution, grid.origin)
 
 
 def nearest_free_cell(grid: OccupancyGrid, cell):
@@ -295,18 +334,21 @@ def nearest_free_cell(grid: OccupancyGrid, cell):
     return None
 
 
-class GridPlanner:
+class AStarPlanner:
     """Planner callable ``(start_xy, goal_xy) -> path (n, 2)``: A* on a grid, then smoothed.
 
-    Paths keep ``inflation`` metres away from obstacles (A* and smoothing run on the inflated
-    grid). A robot that has strayed into an obstacle or its margin is not stuck: the path
-    leaves from there to the nearest free cell. A goal inside an obstacle is refused
-    (:class:`InObstacleError`); a goal within the margin is reached through the nearest free
-    cell.
+    Paths keep ``inflation`` metres away from obstacles (the search and the smoothing run on
+    the inflated grid). A robot that has strayed into an obstacle or its margin is not
+    stuck: the path leaves from there to the nearest free cell. A goal inside an obstacle is
+    refused (:class:`InObstacleError`); a goal within the margin is reached through the
+    nearest free cell.
+
+    This one runs A* from scratch at every call (seconds on a million cells): it is the
+    reference :class:`GridPlanner` is tested and benchmarked against.
 
     Args:
         grid: the occupancy grid.
-        smooth: shortcut the A* path by line of sight (default True).
+        smooth: shortcut the grid path by line of sight (default True).
         inflation: clearance from obstacles in metres (default 0).
     """
 
@@ -315,31 +357,107 @@ class GridPlanner:
         self.smooth = smooth
         self.inflation = float(inflation)
         self.planning_grid = inflate(grid, self.inflation)
+        self.smooth_horizon = math.inf
 
     def __call__(self, start_xy, goal_xy) -> np.ndarray:
         start_xy = np.asarray(start_xy, dtype=float).reshape(-1)[:2]
         goal_xy = np.asarray(goal_xy, dtype=float).reshape(-1)[:2]
         start = _endpoint_cell(self.grid, start_xy, 'start', in_obstacle_ok=True)
         goal = _endpoint_cell(self.grid, goal_xy, 'goal')  # in a real obstacle: refused
+        free_start, free_goal, cells = self._cells(start, goal)
         grid = self.planning_grid
-        free_start, free_goal = nearest_free_cell(grid, start), nearest_free_cell(grid, goal)
-        if free_start is None or free_goal is None:
-            raise UnreachableError(f'no free cell on the map {grid.bounds_text()} '
-                                   f'(inflation {self.inflation} m)')
-        cells, _ = astar_cells(grid, free_start, free_goal)
-        points = [start_xy]
+        middle = grid.cell_to_world(np.asarray(cells[1:-1], dtype=float).reshape(-1, 2))
+        points = [start_xy[None]]
         if free_start != start:
-            points.append(grid.cell_to_world(free_start))  # out of the obstacle first
-        points += [grid.cell_to_world(c) for c in cells[1:-1]]
+            points.append(grid.cell_to_world(free_start)[None])  # out of the obstacle first
+        points.append(middle)
         if free_goal != goal and len(cells) > 1:
-            points.append(grid.cell_to_world(free_goal))
-        points.append(goal_xy)
-        path = np.array(points)
+            points.append(grid.cell_to_world(free_goal)[None])
+        points.append(goal_xy[None])
+        path = np.vstack(points)
         if not self.smooth:
             return path
         # Smooth the part that lies in free space; the way out of an obstacle stays as is.
         k = 1 if free_start != start else 0
-        return np.vstack([path[:k], smooth_path(grid, path[k:])])
+        return np.vstack([path[:k], smooth_path(grid, path[k:], self.smooth_horizon)])
+
+    def _no_free_cell(self):
+        return UnreachableError(f'no free cell on the map {self.grid.bounds_text()} '
+                                f'(inflation {self.inflation} m)')
+
+    def _cells(self, start, goal):
+        """``(free start cell, free goal cell, optimal cell path between them)``."""
+        grid = self.planning_grid
+        free_start, free_goal = nearest_free_cell(grid, start), nearest_free_cell(grid, goal)
+        if free_start is None or free_goal is None:
+            raise self._no_free_cell()
+        return free_start, free_goal, astar_cells(grid, free_start, free_goal)[0]
+
+
+class GridPlanner(AStarPlanner):
+    """The reward selection layer at navigation scale: A*'s paths, read off a field.
+
+    Same paths' cost, same inflation, same way out of an obstacle as :class:`AStarPlanner`,
+    but the shortest paths come from a :class:`~sela_ros.core.costfield.CostField` computed
+    once per goal (Dijkstra from the goal over the whole map, in compiled code) and kept
+    for the next calls: a call then follows the field from the robot's cell, smooths and
+    returns, in milliseconds on a 1000 x 1000 map. A robot that strays into an obstacle or
+    its margin is led to the nearest cell (Euclidean) from which the goal can be reached.
+
+    Args:
+        grid: the occupancy grid.
+        smooth: shortcut the grid path by line of sight (default True).
+        inflation: clearance from obstacles in metres (default 0).
+        smooth_horizon: metres of the path smoothed (the rest is the optimal grid path as it
+            is; default 5 m, well beyond any lookahead, None: all of it). Smoothing a long
+            path whole costs tens of milliseconds; the waypoint only needs its start.
+        cache_size: fields kept (one per goal cell, least recently used dropped first).
+    """
+
+    def __init__(self, grid: OccupancyGrid, smooth: bool = True, inflation: float = 0.0,
+                 smooth_horizon: float | None = DEFAULT_SMOOTH_HORIZON, cache_size: int = 4):
+        super().__init__(grid, smooth=smooth, inflation=inflation)
+        self.smooth_horizon = math.inf if smooth_horizon is None else float(smooth_horizon)
+        self.cache_size = max(1, int(cache_size))
+        self._graph = None
+        self._fields = OrderedDict()
+
+    def field(self, goal_xy) -> CostField:
+        """The cost-to-go field toward ``goal_xy`` (computed now unless already kept).
+
+        A node may call this when a goal arrives, so that the first step does not pay for
+        it. Raises the errors a plan to that goal would raise.
+        """
+        goal_xy = np.asarray(goal_xy, dtype=float).reshape(-1)[:2]
+        return self._field(_endpoint_cell(self.grid, goal_xy, 'goal'))[1]
+
+    def _field(self, goal):
+        free_goal = nearest_free_cell(self.planning_grid, goal)
+        if free_goal is None:
+            raise self._no_free_cell()
+        field = self._fields.get(free_goal)
+        if field is None:
+            free = ~self.planning_grid.occupied
+            if self._graph is None:
+                self._graph = grid_graph(free)
+            field = CostField(free, free_goal, self._graph)
+            self._fields[free_goal] = field
+            if len(self._fields) > self.cache_size:
+                self._fields.popitem(last=False)
+        self._fields.move_to_end(free_goal)
+        return free_goal, field
+
+    def _cells(self, start, goal):
+        free_goal, field = self._field(goal)
+        if self.planning_grid.is_free(start):
+            if not field.reachable(start):
+                raise UnreachableError(f'goal cell {free_goal} is unreachable from start cell '
+                                       f'{start} (map {self.grid.bounds_text()}, inflation '
+                                       f'{self.inflation} m)')
+            free_start = start
+        else:
+            free_start = field.nearest_reachable(start)
+        return free_start, free_goal, field.cells_from(free_start)
 
 
 def straight_line_planner(start_xy, goal_xy) -> np.ndarray:

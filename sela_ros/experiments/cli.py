@@ -89,6 +89,9 @@ def main(argv=None) -> int:
     from sela_ros.experiments.figures import plot_methods
 
     getattr(module, 'plot', plot_methods)(doc, os.path.join(args.out, 'figure.png'))
+    if hasattr(module, 'write_figures'):  # a scenario's own figures (e.g. paths on a map)
+        for written in module.write_figures(doc, args.out):
+            print(f'wrote {written}')
     for name, s in doc.get('summary', {}).items():
         print(f'{name:16s} success {s["successes"]}/{doc["replicates"]}  median learning '
               f'{s["median_learning_iterations"]:g}  median steps {s["median_steps"]:g}')

@@ -84,3 +84,42 @@ def plot_noise_comparison(docs: list, path) -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def plot_course_paths(doc: dict, grid, path) -> None:
+    """One panel per method: every replicate's walked path drawn over the course map.
+
+    Args:
+        doc: a ``results.json`` document of ``sela-experiment hexapod --map``.
+        grid: the course's occupancy grid.
+        path: output image path (PNG).
+    """
+    names = list(doc['methods'])
+    xmin, xmax, ymin, ymax = grid.bounds
+    fig, axes = plt.subplots(1, len(names), figsize=(3.3 * len(names), 3.6), dpi=100,
+                             squeeze=False)
+    for ax, name in zip(axes[0], names):
+        m = doc['methods'][name]
+        ax.imshow(grid.occupied, origin='lower', extent=(xmin, xmax, ymin, ymax),
+                  cmap='Greys', vmin=0, vmax=1.4, interpolation='nearest')
+        for walked, ok in zip(m['paths'], m['success']):
+            xy = np.asarray(walked)
+            ax.plot(xy[:, 0], xy[:, 1], lw=0.7, alpha=0.6,
+                    color='#1b9e77' if ok else '#d95f02')
+        ax.add_patch(plt.Circle(doc['parameters']['goal'], 0.1, color='tab:blue', fill=False,
+                                lw=1))
+        ax.plot(0, 0, 'ks', ms=4)
+        s = doc['summary'][name]
+        ax.set_title(f'{LABELS.get(name, name).replace(chr(10), " ")}: {s["successes"]}/'
+                     f'{doc["replicates"]} reached\nmedian {s["median_steps"]:g} steps, '
+                     f'{s["collisions"]} collisions', fontsize=8)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_aspect('equal')
+    params = doc['parameters']
+    fig.suptitle(f'course {params.get("course") or params.get("map")}, damage '
+                 f'{params["damage"]}: walked paths (green: goal reached, orange: not)',
+                 fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

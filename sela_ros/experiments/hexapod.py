@@ -11,8 +11,12 @@ never reset: learning trials (IT&E) move it too, and a fallen robot is righted i
 Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measurements):
 
 * Reward selection layer: the straight line to the goal with a waypoint ``--lookahead``
-  metres ahead (default 0.4 m; the hexapod's gaits move 0-0.7 m per 3 s). Without
-  obstacles A* on a grid gives the same straight path.
+  metres ahead (default 0.6 m; the hexapod's gaits move 0-0.7 m per 3 s). Without
+  obstacles A* on a grid gives the same straight path. With ``--map`` (a course name such
+  as ``maze``, or a map YAML) the optimal grid path on that map, ``--inflation`` metres
+  clear of obstacles (:class:`~sela_ros.core.planning.GridPlanner`); the goal defaults to
+  the course's last goal, and a gait that ends inside an obstacle counts as a collision
+  (the simulator has no walls: the map is the planner's). See ``docs/course_results.md``.
 * ``ite_4dir`` learns four targets in generic-reward space (dx, dy, dyaw): forward
   ``(max dx, 0, 0)``, backward ``(min dx, 0, 0)``, turn counter-clockwise
   ``(0, 0, max dyaw)`` and turn clockwise ``(0, 0, min dyaw)`` of the intact archive,
@@ -28,6 +32,7 @@ import argparse
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
@@ -60,6 +65,19 @@ def _archive(text):
     return str(text)
 
 
+def _course_map(text):
+    """``--map``: a course name or a map file; returns ``(path, Course or None)``."""
+    from sela_ros.core.maps import MapError, load_map_file
+    from sela_ros.experiments.courses import find_course
+
+    try:
+        path, course = find_course(text)
+        load_map_file(path)
+    except (ValueError, MapError) as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return str(Path(path).resolve()), course
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment hexapod`` (the common ones are added by the CLI)."""
     from sela_ros.core.archive import default_archive_path
@@ -70,8 +88,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--damage', type=arguments.damage, default='remove:middle_right',
                         help="damage spec, e.g. remove:middle_right (default, the paper's), "
                              'shorten:front_left:0.5, block:rear_right.knee=0.2')
-    parser.add_argument('--goal', type=arguments.goal, default=[2.0, 2.0],
-                        help='goal X,Y in metres from the start (default 2,2)')
+    parser.add_argument('--goal', type=arguments.goal, default=None,
+                        help="goal X,Y in metres from the start (default 2,2, or the "
+                             "course's last goal with --map)")
+    parser.add_argument('--map', type=_course_map, default=None,
+                        help='plan on this map: a shipped course (wall_gap, corridor, maze) '
+                             "or a map YAML (map_server's or the project's format)")
+    parser.add_argument('--inflation', type=arguments.non_negative_float, default=0.25,
+                        help='with --map: clearance kept from obstacles (m, default '
+                             '%(default)s, as the planner node)')
     parser.add_argument('--noise-std', type=arguments.non_negative_float,
                         default=arguments.DEFAULT_NOISE_STD, help=arguments.NOISE_HELP)
     parser.add_argument('--lookahead', type=arguments.positive_float, default=DEFAULT_LOOKAHEAD,
@@ -113,7 +138,7 @@ def ite_targets(prior_gr) -> np.ndarray:
 
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
-                 fall_risk=None) -> Problem:
+                 fall_risk=None, planner=None) -> Problem:
     defaults = SELAConfig()
     config = SELAConfig(planner_lookahead=lookahead,
                         fall_risk_threshold=fall_risk or defaults.fall_risk_threshold,
@@ -125,6 +150,7 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
         prior_gr=archive.generic_reward,
         motion=SE2Motion(),
         goal=np.asarray(goal, dtype=float),
+        planner=planner,
         config=config,
         max_steps=max_steps,
         true_gr=true_gr,
@@ -148,29 +174,47 @@ def _worker_state(archive_path):
     return _WORKER['archive']
 
 
+def _worker_planner(map_path, inflation):
+    """``(grid, planner)`` for a map, built once per worker (its fields are kept too)."""
+    from sela_ros.core.maps import load_map_file
+    from sela_ros.core.planning import GridPlanner
+
+    if _WORKER.get('map') != (map_path, inflation):
+        grid = load_map_file(map_path)
+        _WORKER['map'] = (map_path, inflation)
+        _WORKER['planner'] = (grid, GridPlanner(grid, inflation=inflation))
+    return _WORKER['planner']
+
+
 def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
-     ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk) = job
+     ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk, map_path, inflation) = job
+    from sela_ros.experiments.courses import CourseEnvironment
     from sim_bridge.experiment_env import HexapodEnvironment
 
     archive = _worker_state(archive_path)
+    grid, planner = _worker_planner(map_path, inflation) if map_path else (None, None)
     settings = archive.simulator_settings
     env_seed, method_seed = seed_seq.spawn(2)
     start = time.perf_counter()
     with HexapodEnvironment(archive.params, damage, noise_std=noise_std,
                             seed=np.random.default_rng(env_seed),
-                            dt=settings['dt'], gait_duration=settings['gait_duration']) as env:
+                            dt=settings['dt'], gait_duration=settings['gait_duration']) as sim:
+        env = CourseEnvironment(sim, grid) if grid is not None else sim
         problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
                                ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
-                               alpha=alpha, fall_risk=fall_risk)
+                               alpha=alpha, fall_risk=fall_risk, planner=planner)
         result = METHODS[name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
-        return {'success': bool(result.success), 'steps': int(result.steps),
-                'learning_iterations': int(result.learning_iterations),
-                'falls': int(env.falls), 'sim_seconds': env.sim_seconds,
-                'wall_seconds': time.perf_counter() - start,
-                'final_distance': float(np.hypot(final[0] - goal[0], final[1] - goal[1]))}
+        out = {'success': bool(result.success), 'steps': int(result.steps),
+               'learning_iterations': int(result.learning_iterations),
+               'falls': int(sim.falls), 'sim_seconds': sim.sim_seconds,
+               'wall_seconds': time.perf_counter() - start,
+               'final_distance': float(np.hypot(final[0] - goal[0], final[1] - goal[1]))}
+        if grid is not None:
+            out.update(collisions=int(env.collisions), path=env.path)
+        return out
 
 
 def run(args, progress=None) -> dict:
@@ -191,14 +235,16 @@ def run(args, progress=None) -> dict:
         oracle_seconds = time.perf_counter() - start
         oracle_gr = np.where(fallen[:, None], FALLEN_GR, gr)
         oracle_falls = int(fallen.sum())
+    map_path, course = args.map if args.map else (None, None)
+    goal = args.goal or (list(course.goals[-1]) if course else [2.0, 2.0])
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     jobs = []
     for seed in seeds:
         for name, child in zip(args.methods, seed.spawn(len(args.methods))):
-            jobs.append((name, child, os.path.abspath(args.archive), args.damage, args.goal,
+            jobs.append((name, child, os.path.abspath(args.archive), args.damage, goal,
                          args.noise_std, args.lookahead, args.max_steps,
                          args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
-                         args.fall_risk))
+                         args.fall_risk, map_path, args.inflation))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -226,6 +272,9 @@ def run(args, progress=None) -> dict:
             'falls': [r['falls'] for r in runs],
             'final_distance': [round(r['final_distance'], 4) for r in runs],
         }
+        if map_path:
+            methods[name]['collisions'] = [r['collisions'] for r in runs]
+            methods[name]['paths'] = [r['path'] for r in runs]
         timing[name] = {'sim_seconds': float(sum(r['sim_seconds'] for r in runs)),
                         'wall_seconds': float(sum(r['wall_seconds'] for r in runs))}
     summary = {name: {'successes': int(sum(m['success'])),
@@ -235,12 +284,19 @@ def run(args, progress=None) -> dict:
                                                              m['learning_iterations']))),
                       'falls': int(sum(m['falls']))}
                for name, m in methods.items()}
+    if map_path:
+        for name, m in methods.items():
+            summary[name]['collisions'] = int(sum(m['collisions']))
+            summary[name]['runs_with_collisions'] = int(sum(c > 0 for c in m['collisions']))
     return {'scenario': 'hexapod', 'replicates': args.replicates, 'methods': methods,
             'seed': args.seed,
             'parameters': {'noise_std': args.noise_std, 'max_steps': args.max_steps,
-                           'damage': args.damage, 'goal': list(args.goal),
+                           'damage': args.damage, 'goal': list(goal),
                            'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,
-                           'planner': 'straight_line', 'goal_eps': SELAConfig().goal_eps,
+                           'planner': 'grid' if map_path else 'straight_line',
+                           'map': map_path, 'course': course.name if course else None,
+                           'inflation': args.inflation if map_path else None,
+                           'goal_eps': SELAConfig().goal_eps,
                            'ite_max_iterations': args.ite_iterations,
                            'gp.kernel.sigma': args.kernel_sigma,
                            'acquisition.ucb.alpha': args.alpha,
@@ -252,3 +308,16 @@ def run(args, progress=None) -> dict:
             'timing': {'wall_seconds': wall, 'workers': args.workers,
                        'oracle_table_seconds': oracle_seconds, 'methods': timing},
             'summary': summary}
+
+
+def write_figures(doc, out) -> list:
+    """With ``--map``: ``paths.png``, every replicate's path drawn over the course."""
+    params = doc['parameters']
+    if not params.get('map'):
+        return []
+    from sela_ros.core.maps import load_map_file
+    from sela_ros.experiments.figures import plot_course_paths
+
+    path = os.path.join(out, 'paths.png')
+    plot_course_paths(doc, load_map_file(params['map']), path)
+    return [path]

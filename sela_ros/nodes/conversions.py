@@ -300,18 +300,31 @@ def occupancy_grid_to_msg(occupancy, resolution, origin_xy, stamp=0.0, frame_id=
     return msg
 
 
-def occupancy_grid_from_msg(msg):
-    """Return ``(occupied (height, width) bool, resolution, origin_xy)``; unknown is occupied."""
+def occupancy_values_from_msg(msg):
+    """Return ``(values (height, width) int16, resolution, origin_xy)`` of a map message.
+
+    ``values`` keep ROS's convention (-1 unknown, 0..100); row 0 is at the origin. A map
+    rotated in its frame (origin yaw not 0) is refused: the planner plans without rotation.
+    """
     h, w = msg.info.height, msg.info.width
     data = np.asarray(msg.data, dtype=np.int16)
-    if data.size != h * w:
-        raise MessageError(f'occupancy grid: {data.size} cells for {h}x{w}')
+    if h < 1 or w < 1 or data.size != h * w:
+        raise MessageError(f'occupancy grid: {data.size} cells for {w} x {h} (width x height)')
     if not (msg.info.resolution > 0 and math.isfinite(msg.info.resolution)):
         raise MessageError(f'occupancy grid: resolution {msg.info.resolution} must be > 0')
-    occupied = (data.reshape(h, w) >= 50) | (data.reshape(h, w) < 0)
     origin = _finite_array([msg.info.origin.position.x, msg.info.origin.position.y],
                            'occupancy grid origin', 2)
-    return occupied, float(msg.info.resolution), origin
+    yaw = quaternion_to_yaw(msg.info.origin.orientation)
+    if not abs(yaw) < 1e-6:
+        raise MessageError(f'occupancy grid: origin yaw {yaw:.4f} rad is not supported '
+                           '(expected an unrotated map, yaw 0)')
+    return data.reshape(h, w), float(msg.info.resolution), origin
+
+
+def occupancy_grid_from_msg(msg):
+    """Return ``(occupied (height, width) bool, resolution, origin_xy)``; unknown is occupied."""
+    values, resolution, origin = occupancy_values_from_msg(msg)
+    return (values >= 50) | (values < 0), resolution, origin
 
 
 # --- diagnostics ---------------------------------------------------------------------------

@@ -106,6 +106,8 @@ OUTCOME = Topic('hexapod/behavior_outcome', Float64MultiArray, DECISION_QOS)
 GOAL = Topic('goal_pose', PoseStamped, GOAL_QOS)
 PATH = Topic('planner/path', Path, LATCHED_QOS, owner=PLANNER)
 MAP = Topic('planner/map', OccupancyGrid, LATCHED_QOS, owner=PLANNER)
+# A map for the planner, as map_server publishes it (reliable, transient local).
+MAP_IN = Topic('map', OccupancyGrid, LATCHED_QOS)
 TARGET = Topic('sela/target', PointStamped, LATCHED_QOS)  # for observers: the plan has it
 PREDICTION = Topic('sela/prediction', Float64MultiArray, DECISION_QOS)
 REWARD = Topic('sela/reward', Float64, COMMAND_QOS)
@@ -118,8 +120,8 @@ ADAPT = Service('sela_adapter/adapt', Trigger, SELA_ADAPTER)
 CLEAR = Service('sela_adapter/clear', Trigger, SELA_ADAPTER)
 RESET = Service('sim_bridge/reset', Trigger, SIM_BRIDGE)
 
-TOPICS = (CLOCK, ODOM, JOINT_STATES, BEHAVIOR, OUTCOME, GOAL, PATH, MAP, TARGET, PREDICTION,
-          REWARD, VERDICT, DIAGNOSTICS)
+TOPICS = (CLOCK, ODOM, JOINT_STATES, BEHAVIOR, OUTCOME, GOAL, PATH, MAP, MAP_IN, TARGET,
+          PREDICTION, REWARD, VERDICT, DIAGNOSTICS)
 SERVICES = (MAKE_PLAN, ADAPT, CLEAR, RESET)
 
 

@@ -1,24 +1,29 @@
-"""The ``planner`` node: A* over an occupancy grid, the reward selection layer of SELA.
+"""The ``planner`` node: optimal grid paths over an occupancy grid, the reward selection layer.
 
 Serves ``~/make_plan`` (nav_msgs/GetPlan): the answer's ``plan`` is the path from the
 request's start up to and ending at the next waypoint, ``planner.lookahead`` metres along
 the path to the goal (or the goal itself when closer): the waypoint the specialised reward is
 built on is its last pose. An empty plan means no path (the reason goes to ``diagnostics``).
 After each plan the full path to the goal is published on ``~/path`` and the waypoint on
-``sela/target`` for observers. The map is published once, latched, on ``~/map``. A goal on
-``goal_pose`` is checked against the map and planned from the latest odometry, so a bad goal
-is reported as soon as it is sent.
-"""
-import math
+``sela/target`` for observers. Paths come from a cost-to-go field computed once per goal
+and map (:class:`~sela_ros.core.planning.GridPlanner`): milliseconds per plan on a million
+cells.
 
+The map comes from ``map.file`` (map_server's YAML + image, or the project's YAML), else the
+``map.*`` parameters, and is replaced by any ``nav_msgs/OccupancyGrid`` received on ``map``
+(what map_server publishes: reliable, transient local). A map that cannot be used is reported
+on ``diagnostics`` and the current one kept. The map in use is published, latched, on
+``~/map``. A goal on ``goal_pose`` is checked against the map and planned from the latest
+odometry, so a bad goal is reported as soon as it is sent.
+"""
 import numpy as np
-import yaml
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from sela_ros.core.planning import GridPlanner, OccupancyGrid, PlanningError, next_waypoint
+from sela_ros.core.maps import MapError, grid_from_description, grid_from_ros, load_map_file
+from sela_ros.core.planning import GridPlanner, PlanningError, next_waypoint
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
@@ -26,53 +31,7 @@ from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 
-
-def grid_from_description(resolution, origin, width, height, obstacles):
-    """Build an :class:`OccupancyGrid` from the planner's map parameters.
-
-    ``obstacles`` is a flat list ``[xmin, ymin, xmax, ymax, ...]`` of rectangles in metres.
-    """
-    origin = [float(v) for v in origin]
-    if len(origin) != 2:
-        raise ValueError(f'map.origin must be [x, y], got {origin}')
-    for name, value in (('map.resolution', resolution), ('map.width', width),
-                        ('map.height', height)):
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise ValueError(f'{name} must be a number > 0, got {value!r}')
-    obstacles = [float(v) for v in obstacles]
-    if len(obstacles) % 4:
-        raise ValueError('map.obstacles must be a flat list of rectangles '
-                         f'[xmin, ymin, xmax, ymax, ...]; got {len(obstacles)} numbers')
-    grid = OccupancyGrid.empty(origin[0], origin[0] + width, origin[1], origin[1] + height,
-                               resolution)
-    occupied = grid.occupied.copy()
-    ys = grid.origin[1] + (np.arange(grid.height) + 0.5) * grid.resolution
-    xs = grid.origin[0] + (np.arange(grid.width) + 0.5) * grid.resolution
-    for xmin, ymin, xmax, ymax in np.reshape(obstacles, (-1, 4)):
-        if not (xmax > xmin and ymax > ymin):
-            raise ValueError(f'obstacle [{xmin}, {ymin}, {xmax}, {ymax}] is empty: '
-                             'expected xmin < xmax and ymin < ymax')
-        occupied[np.ix_((ys >= ymin) & (ys <= ymax), (xs >= xmin) & (xs <= xmax))] = True
-    return OccupancyGrid(occupied, grid.resolution, grid.origin)
-
-
-def load_map_file(path):
-    """Read a map YAML: keys resolution, origin, width, height, obstacles (as the params)."""
-    try:
-        with open(path) as handle:
-            data = yaml.safe_load(handle)
-    except OSError as exc:
-        raise ValueError(f'map file {path}: {exc.strerror}') from exc
-    except yaml.YAMLError as exc:
-        raise ValueError(f'map file {path} is not valid YAML: {exc}') from exc
-    if not isinstance(data, dict):
-        raise ValueError(f'map file {path}: expected a mapping with resolution, origin, '
-                         'width, height, obstacles')
-    missing = {'resolution', 'origin', 'width', 'height'} - set(data)
-    if missing:
-        raise ValueError(f'map file {path}: missing key(s) {sorted(missing)}')
-    return grid_from_description(data['resolution'], data['origin'], data['width'],
-                                 data['height'], data.get('obstacles', []))
+__all__ = ['PlannerNode', 'grid_from_description', 'load_map_file', 'main', 'path_up_to']
 
 
 def path_up_to(path_xy, waypoint):
@@ -109,8 +68,11 @@ PARAMETERS = (
     # Not set by default: ROS cannot hold an empty typed array in YAML.
     Spec('map.obstacles', None, 'rectangles [xmin, ymin, xmax, ymax, ...] in m',
          kind='double_array', rule=_obstacles_rule, read_only=True),
-    Spec('map.file', '', "a map YAML (resolution, origin, width, height, obstacles); '' = the "
-         'map.* parameters', read_only=True),
+    Spec('map.file', '', "a map YAML: map_server's (image, resolution, origin, ...) or the "
+         "project's (resolution, origin, width, height, obstacles); '' = the map.* "
+         'parameters. Settable at run time: a file that cannot be used is refused'),
+    Spec('map.unknown_is_occupied', True, 'unknown cells (-1) of a map_server map or a map '
+         'message are obstacles (false: free)', read_only=True),
     Spec('planner.lookahead', 0.6, 'distance along the path to the waypoint of the reward',
          low=0.01, high=100.0, unit=' m'),
     Spec('planner.inflation', 0.25, 'clearance kept from obstacles', low=0.0, high=10.0,
@@ -119,17 +81,25 @@ PARAMETERS = (
 )
 
 
+def _map_file_problem(path, exc):
+    """What is wrong with a map file: a MapError says it; anything else is named."""
+    return str(exc) if isinstance(exc, ValueError) else \
+        f'map file {path}: {type(exc).__name__}: {exc}'
+
+
 class PlannerNode(Node):
     def __init__(self):
         super().__init__(ifc.PLANNER)
+        self._pending_grid = None
         values = declare(self, PARAMETERS, on_change=self.parameters_callback)
         self.frame_id = values['frame_id']
         self.lookahead = values['planner.lookahead']
+        self.unknown_is_occupied = values['map.unknown_is_occupied']
+        self.inflation = values['planner.inflation']
         self.map_error = None
-        self.grid = self._load_grid()
-        self.planner = GridPlanner(self.grid, inflation=values['planner.inflation'])
         self.pose = None
         self.goal = None
+        self.grid = self.planner = None
 
         self.map_pub = ifc.publisher(self, ifc.MAP)
         self.path_pub = ifc.publisher(self, ifc.PATH)
@@ -137,32 +107,73 @@ class PlannerNode(Node):
         self.diag_pub = ifc.publisher(self, ifc.DIAGNOSTICS)
         ifc.subscription(self, ifc.ODOM, self.odom_callback)
         ifc.subscription(self, ifc.GOAL, self.goal_callback)
+        # map_server's topic and QoS: a map published before the planner started still comes.
+        ifc.subscription(self, ifc.MAP_IN, self.map_callback)
         ifc.server(self, ifc.MAKE_PLAN, self.make_plan_callback)
+        self.add_post_set_parameters_callback(self.parameters_applied_callback)
         add_heartbeat(self)
-        self.map_pub.publish(conv.occupancy_grid_to_msg(
-            self.grid.occupied, self.grid.resolution, self.grid.origin, frame_id=self.frame_id))
+        grid, source = self._initial_grid()
+        self._use_grid(grid, source)
         if self.map_error:
             self._report(DiagnosticStatus.ERROR, self.map_error)
-        self.get_logger().info(f'map {self.grid.width}x{self.grid.height} cells of '
-                               f'{self.grid.resolution} m, bounds {self.grid.bounds_text()}, '
-                               f'lookahead {self.lookahead} m, inflation '
-                               f'{self.planner.inflation} m')
 
-    def _load_grid(self):
+    def _initial_grid(self):
         path = self.get_parameter('map.file').value
         if path:
             try:
-                return load_map_file(path)
+                return load_map_file(path, self.unknown_is_occupied), f'file {path}'
             except Exception as exc:  # noqa: BLE001 - whatever the file holds (origin: 5)
                 # A bad map file must not take the planner down: say why, use the params.
-                detail = exc if isinstance(exc, ValueError) else (
-                    f'map file {path}: {type(exc).__name__}: {exc}')
-                self.map_error = f'{detail}; planning on the map.* parameters instead'
+                self.map_error = f'{_map_file_problem(path, exc)}; planning on the map.* ' \
+                    'parameters instead'
                 self.get_logger().error(self.map_error)
-        return grid_from_description(
-            self.get_parameter('map.resolution').value, self.get_parameter('map.origin').value,
-            self.get_parameter('map.width').value, self.get_parameter('map.height').value,
-            self._obstacles())
+        try:
+            return grid_from_description(
+                self.get_parameter('map.resolution').value,
+                self.get_parameter('map.origin').value, self.get_parameter('map.width').value,
+                self.get_parameter('map.height').value, self._obstacles()), 'map.* parameters'
+        except MapError as exc:
+            # Wrong map.* parameters: still run (and say so) on an empty default field.
+            self.map_error = f'{exc}; planning on an empty 4 m x 4 m field instead'
+            self.get_logger().error(self.map_error)
+            return grid_from_description(0.05, [-1.0, -1.0], 4.0, 4.0, []), 'default field'
+
+    def _use_grid(self, grid, source):
+        """Plan on ``grid`` from now on and publish it; the current goal's field is built."""
+        self.grid = grid
+        self.planner = GridPlanner(grid, inflation=float(self.inflation))
+        self.map_pub.publish(conv.occupancy_grid_to_msg(
+            grid.occupied, grid.resolution, grid.origin, frame_id=self.frame_id))
+        message = (f'map from {source}: {grid.width}x{grid.height} cells of '
+                   f'{grid.resolution} m, bounds {grid.bounds_text()}, lookahead '
+                   f'{self.lookahead} m, inflation {self.planner.inflation} m')
+        self._report(DiagnosticStatus.OK, message)
+        self._prepare_goal()
+
+    def _prepare_goal(self):
+        if self.goal is None:
+            return
+        try:
+            self.planner.field(self.goal)  # paid now, not by the next step
+        except PlanningError as exc:
+            self._report(DiagnosticStatus.ERROR, f'current goal not reachable on the new map '
+                         f'or inflation: {exc}')
+
+    @guard
+    def map_callback(self, msg):
+        try:
+            values, resolution, origin = conv.occupancy_values_from_msg(msg)
+            grid = grid_from_ros(values, resolution, origin, self.unknown_is_occupied)
+        except (conv.MessageError, MapError) as exc:
+            self._report(DiagnosticStatus.ERROR, f'map on topic rejected: {exc}; keeping '
+                         'the current map')
+            return
+        source = f'topic {self.resolve_topic_name(ifc.MAP_IN.name)}'
+        if msg.header.frame_id not in ('', self.frame_id):
+            # No tf here: the map is taken as drawn in the planning frame (true in the
+            # simulator, where odom does not drift); say so rather than refuse it.
+            source += f' (frame {msg.header.frame_id!r} taken as {self.frame_id!r})'
+        self._use_grid(grid, source)
 
     def _obstacles(self):
         # Not set (None) when none are given: ROS cannot hold an empty typed array in YAML.
@@ -170,13 +181,36 @@ class PlannerNode(Node):
 
     @guard_parameters
     def parameters_callback(self, params):
-        # Called by params.declare with values its check accepted (map.* are read-only).
+        """Check what needs the node (a map file must load); params.declare checked types."""
+        self._pending_grid = None
+        for param in params:
+            if param.name == 'map.file' and param.value:
+                # Reading the file is the check: a bad one is refused, the map stays.
+                try:
+                    self._pending_grid = (load_map_file(param.value, self.unknown_is_occupied),
+                                          f'file {param.value}')
+                except Exception as exc:  # noqa: BLE001 - whatever the file holds
+                    problem = f'map.file: {_map_file_problem(param.value, exc)}'
+                    self._report(DiagnosticStatus.ERROR, f'parameter refused: {problem}; '
+                                 'keeping the current map')
+                    return SetParametersResult(successful=False, reason=problem)
+        return None
+
+    @guard
+    def parameters_applied_callback(self, params):
+        rebuild = False
         for param in params:
             if param.name == 'planner.lookahead':
                 self.lookahead = float(param.value)
             elif param.name == 'planner.inflation':
-                self.planner = GridPlanner(self.grid, inflation=float(param.value))
-        return SetParametersResult(successful=True)
+                self.inflation = float(param.value)
+                rebuild = True
+        if self._pending_grid is not None:
+            grid, source = self._pending_grid
+            self._pending_grid = None
+            self._use_grid(grid, source)
+        elif rebuild:
+            self._use_grid(self.grid, 'the same map with the new inflation')
 
     @guard
     def odom_callback(self, msg):
@@ -200,6 +234,7 @@ class PlannerNode(Node):
             return
         self.goal = goal
         self.get_logger().info(f'goal ({goal[0]:.2f}, {goal[1]:.2f})')
+        self._prepare_goal()
         if self.pose is not None:
             self._plan(self.pose[:2], goal, msg.header.stamp)
 

@@ -20,6 +20,15 @@ from sela_ros.experiments import arguments
 NODES = ('sim_bridge', 'planner', 'damage_detector', 'sela_adapter')
 
 
+def _course(text):
+    from sela_ros.experiments.courses import find_course
+
+    try:
+        return find_course(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 def build_parser():
     parser = argparse.ArgumentParser(
         prog='sela-demo', description='The damaged hexapod learns to walk to its goal while '
@@ -27,8 +36,12 @@ def build_parser():
     parser.add_argument('--damage', type=arguments.damage, default='remove:middle_right',
                         help="damage spec, e.g. 'remove:middle_right' (default), "
                         "'shorten:front_left:0.5', 'block:rear_right.knee', 'intact'")
-    parser.add_argument('--goal', type=arguments.goal, default=(2.0, 2.0), metavar='X,Y',
-                        help='goal in the odom frame, metres (default: 2,2)')
+    parser.add_argument('--goal', type=arguments.goal, default=None, metavar='X,Y',
+                        help="goal in the odom frame, metres (default: 2,2, or the course's "
+                        'last goal with --course)')
+    parser.add_argument('--course', type=_course, default=None, metavar='NAME',
+                        help='an obstacle course shipped in config/maps (wall_gap, corridor, '
+                        "maze) or a map YAML: the planner's map")
     parser.add_argument('--seed', type=int, default=0, help='observation-noise seed')
     parser.add_argument('--gui', action='store_true', help="show PyBullet's window")
     parser.add_argument('--params-file', default=None,
@@ -51,6 +64,9 @@ def build_parser():
 def main(argv=None):
     args = build_parser().parse_args(argv)
     damage = args.damage
+    map_path, course = args.course or (None, None)
+    if args.goal is None:
+        args.goal = list(course.goals[-1]) if course else [2.0, 2.0]
     from sela_ros.tools.ros_env import (
         ensure_ros_environment,
         executable,
@@ -74,6 +90,8 @@ def main(argv=None):
             if name == 'sim_bridge':
                 cmd += ['-p', f'damage:={damage}', '-p', f'seed:={args.seed}',
                         '-p', f'sim.gui:={str(args.gui).lower()}']
+            if name == 'planner' and map_path:
+                cmd += ['-p', f'map.file:={Path(map_path).resolve()}']
             if name == 'sela_adapter':
                 state_file = out / 'sela_adapter_state.json'
                 if not args.keep_learning and state_file.exists():
@@ -187,7 +205,12 @@ def run_client(args, damage, out, procs):
     }
     with open(out / 'summary.json', 'w') as handle:
         json.dump(summary, handle, indent=1)
-    plot_trajectory(out / 'trajectory.png', trajectory, steps, args.goal, damage)
+    grid = None
+    if args.course:
+        from sela_ros.core.maps import load_map_file
+
+        grid = load_map_file(args.course[0])
+    plot_trajectory(out / 'trajectory.png', trajectory, steps, args.goal, damage, grid)
     verdict = 'goal reached' if summary['success'] else 'goal NOT reached'
     print(f"sela-demo: {verdict} in {summary['steps']} steps "
           f"(adaptation from step {summary['learning_started_at_step']}, "
@@ -201,13 +224,17 @@ def _metres(value):
     return 'unknown' if value is None else f'{value:.3f} m'
 
 
-def plot_trajectory(path, trajectory, steps, goal, damage):
+def plot_trajectory(path, trajectory, steps, goal, damage, grid=None):
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 6))
+    if grid is not None:
+        xmin, xmax, ymin, ymax = grid.bounds
+        ax.imshow(grid.occupied, origin='lower', extent=(xmin, xmax, ymin, ymax), cmap='Greys',
+                  vmin=0, vmax=1.4, interpolation='nearest')
     if trajectory:
         xy = [(t[1], t[2]) for t in trajectory]
         ax.plot(*zip(*xy), color='tab:blue', lw=1.2, label='robot (odom)')
