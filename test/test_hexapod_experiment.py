@@ -61,7 +61,55 @@ def test_hexapod_cli_writes_schema(archive_path, tmp_path):
     assert json.loads((out2 / 'results.json').read_text())['methods'] == doc['methods']
 
 
+def test_hexapod_cli_on_a_course_counts_collisions_and_draws_paths(archive_path, tmp_path):
+    out = tmp_path / 'maze'
+    argv = ['hexapod', '--replicates', '1', '--seed', '3', '--out', str(out), '--map', 'maze',
+            '--archive', str(archive_path), '--max-steps', '2', '--ite-iterations', '1',
+            '--methods', 'sela,ite_4dir', '--quiet']
+    assert main(argv) == 0
+    doc = json.loads((out / 'results.json').read_text())
+    assert doc['parameters']['course'] == 'maze' and doc['parameters']['planner'] == 'grid'
+    assert doc['parameters']['goal'] == [4.5, 4.5]  # the course's last goal
+    for name, m in doc['methods'].items():
+        assert m['collisions'][0] >= 0 and doc['summary'][name]['collisions'] >= 0
+        # The start, then one point per gait (learning trials included).
+        assert len(m['paths'][0]) == 1 + m['steps'][0] + m['learning_iterations'][0]
+    assert (out / 'paths.png').stat().st_size > 1000
+
+
+def test_course_environment_counts_steps_that_end_in_an_obstacle():
+    from sela_ros.core.planning import OccupancyGrid
+    from sela_ros.experiments.courses import CourseEnvironment
+
+    class Walker:  # moves 1 m along x per gait
+        def __init__(self):
+            self.x = 0.0
+
+        def reset(self):
+            self.x = 0.0
+
+        def true_pose(self):
+            return np.array([self.x + 0.5, 0.5, 0.0])
+
+        def observed_pose(self):
+            return self.true_pose()
+
+        def execute(self, index):
+            self.x += 1.0
+            return self.true_pose()
+
+    occ = np.zeros((1, 5), dtype=bool)
+    occ[0, 2] = True  # x in [2, 3)
+    env = CourseEnvironment(Walker(), OccupancyGrid(occ, 1.0))
+    env.reset()
+    for _ in range(6):  # 1.5 free, 2.5 in the obstacle, 3.5, 4.5 free, then off the map
+        env.execute(0)
+    assert env.collisions == 1
+    assert env.path[0] == [0.5, 0.5] and len(env.path) == 7
+
+
 @pytest.mark.parametrize('extra', [
+    ['--map', 'no_such_course'],
     ['--damage', 'remove:tail'],
     ['--goal', '2'],
     ['--goal', '2,nan'],

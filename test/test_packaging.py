@@ -54,12 +54,14 @@ def test_data_files_are_installed_under_share(prefix):
     share = Path(get_package_share_directory('sela_ros'))
     assert share == prefix / 'share' / 'sela_ros'
     assert (share / 'package.xml').is_file()
-    for sub, pattern in (('config', '*.yaml'), ('launch', '*.py'), ('rviz', '*.rviz')):
+    for sub, pattern in (('config', '*.yaml'), ('launch', '*.py'), ('rviz', '*.rviz'),
+                         ('config/maps', '*.*')):
         sources = sorted((ROOT / sub).glob(pattern))
         assert sources, f'nothing in {sub}/'
         for src in sources:
             assert (share / sub / src.name).is_file(), f'{sub}/{src.name} not installed'
     assert (share / 'urdf' / 'hexapod.urdf').is_file(), 'the URDF is not under share/urdf'
+    assert (share / 'config' / 'maps' / 'maze.pgm').is_file()
 
 
 def test_package_xml_declares_runtime_dependencies():

@@ -28,30 +28,39 @@ from scipy.sparse.csgraph import dijkstra
 SQRT2 = math.sqrt(2.0)
 
 
+# The eight moves (dx, dy, cost in cells).
+MOVES = ((1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0),
+         (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2), (-1, -1, SQRT2))
+
+
 def grid_graph(free) -> csr_matrix:
     """The 8-connected graph over the cells of a ``(height, width)`` free-space mask.
 
-    Node ``iy * width + ix`` is cell ``(ix, iy)``. Straight edges join two free
-    neighbours (weight 1); diagonal edges join the opposite corners of a 2 x 2 block whose
-    four cells are free (weight sqrt 2), which is the no-corner-cutting rule. Every edge is
-    stored in both directions.
+    Node ``iy * width + ix`` is cell ``(ix, iy)``. A straight move joins two free
+    neighbours (weight 1); a diagonal move needs the two cells it passes between free too
+    (weight sqrt 2): the no-corner-cutting rule. The CSR arrays are written directly, node
+    by node and move by move, so no sort of millions of edges is needed.
     """
     free = np.asarray(free, dtype=bool)
     h, w = free.shape
-    ids = np.arange(h * w, dtype=np.int64).reshape(h, w)
-    block = free[:-1, :-1] & free[:-1, 1:] & free[1:, :-1] & free[1:, 1:]
-    pairs = [  # (from ids, to ids, weight) for right, up, up-right and up-left moves
-        (ids[:, :-1][free[:, :-1] & free[:, 1:]], 1, 1.0),
-        (ids[:-1, :][free[:-1, :] & free[1:, :]], w, 1.0),
-        (ids[:-1, :-1][block], w + 1, SQRT2),
-        (ids[:-1, 1:][block], w - 1, SQRT2),
-    ]
-    src = np.concatenate([a for a, _, _ in pairs])
-    dst = np.concatenate([a + off for a, off, _ in pairs])
-    weight = np.concatenate([np.full(a.size, c) for a, _, c in pairs])
-    rows = np.concatenate([src, dst]).astype(np.int32)
-    cols = np.concatenate([dst, src]).astype(np.int32)
-    return csr_matrix((np.concatenate([weight, weight]), (rows, cols)), shape=(h * w, h * w))
+    pad = np.pad(free, 1)
+
+    def at(dx, dy):  # free[y + dy, x + dx] for every cell, False off the grid
+        return pad[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+
+    valid = np.empty((h, w, len(MOVES)), dtype=bool)
+    for k, (dx, dy, _) in enumerate(MOVES):
+        ok = free & at(dx, dy)
+        if dx and dy:
+            ok &= at(dx, 0) & at(0, dy)
+        valid[..., k] = ok
+    ids = np.arange(h * w, dtype=np.int32).reshape(h, w, 1)
+    step = np.array([dy * w + dx for dx, dy, _ in MOVES], dtype=np.int32)
+    indices = (ids + step)[valid]
+    data = np.broadcast_to(np.array([c for _, _, c in MOVES]), valid.shape)[valid]
+    indptr = np.zeros(h * w + 1, dtype=np.int32)
+    np.cumsum(valid.reshape(h * w, -1).sum(axis=1), out=indptr[1:])
+    return csr_matrix((data, indices, indptr), shape=(h * w, h * w))
 
 
 class CostField:
