@@ -44,6 +44,7 @@ HEXAPOD_METHODS = ('sela', 'ite_uncertainty', 'ite_4dir', 'oracle')
 # Chosen by measurement (docs/hexapod_results.md): 0.5-1.0 m are alike, 0.4 m and below worse.
 DEFAULT_LOOKAHEAD = 0.6
 ITE_MAX_ITERATIONS = 15  # the paper's N for the hexapod
+DEFAULT_INFLATION = 0.25  # m, as the planner node's planner.inflation
 FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never chosen
 
 
@@ -94,7 +95,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--map', type=_course_map, default=None,
                         help='plan on this map: a shipped course (wall_gap, corridor, maze) '
                              "or a map YAML (map_server's or the project's format)")
-    parser.add_argument('--inflation', type=arguments.non_negative_float, default=0.25,
+    parser.add_argument('--inflation', type=arguments.non_negative_float,
+                        default=DEFAULT_INFLATION,
                         help='with --map: clearance kept from obstacles (m, default '
                              '%(default)s, as the planner node)')
     parser.add_argument('--noise-std', type=arguments.non_negative_float,
@@ -235,7 +237,9 @@ def run(args, progress=None) -> dict:
         oracle_seconds = time.perf_counter() - start
         oracle_gr = np.where(fallen[:, None], FALLEN_GR, gr)
         oracle_falls = int(fallen.sum())
-    map_path, course = args.map if args.map else (None, None)
+    # Callers that build args by hand (the campaign) may leave out the map options.
+    map_path, course = getattr(args, 'map', None) or (None, None)
+    inflation = getattr(args, 'inflation', DEFAULT_INFLATION)
     goal = args.goal or (list(course.goals[-1]) if course else [2.0, 2.0])
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     jobs = []
@@ -244,7 +248,7 @@ def run(args, progress=None) -> dict:
             jobs.append((name, child, os.path.abspath(args.archive), args.damage, goal,
                          args.noise_std, args.lookahead, args.max_steps,
                          args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
-                         args.fall_risk, map_path, args.inflation))
+                         args.fall_risk, map_path, inflation))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -295,7 +299,7 @@ def run(args, progress=None) -> dict:
                            'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,
                            'planner': 'grid' if map_path else 'straight_line',
                            'map': map_path, 'course': course.name if course else None,
-                           'inflation': args.inflation if map_path else None,
+                           'inflation': inflation if map_path else None,
                            'goal_eps': SELAConfig().goal_eps,
                            'ite_max_iterations': args.ite_iterations,
                            'gp.kernel.sigma': args.kernel_sigma,
