@@ -69,11 +69,14 @@ def test_hexapod_cli_on_a_course_counts_collisions_and_draws_paths(archive_path,
     assert main(argv) == 0
     doc = json.loads((out / 'results.json').read_text())
     assert doc['parameters']['course'] == 'maze' and doc['parameters']['planner'] == 'grid'
-    assert doc['parameters']['goal'] == [4.5, 4.5]  # the course's last goal
+    # Without --goal: the course's mission, its goals in order.
+    assert doc['parameters']['goal'] == [4.5, 4.5]
+    assert doc['parameters']['via'] == [[3.0, 0.0], [1.5, 1.5], [3.0, 3.0]]
     for name, m in doc['methods'].items():
         assert m['collisions'][0] >= 0 and doc['summary'][name]['collisions'] >= 0
         # The start, then one point per gait (learning trials included).
         assert len(m['paths'][0]) == 1 + m['steps'][0] + m['learning_iterations'][0]
+        assert m['goal_steps'][0] == []  # 2 steps reach none of the goals
     assert (out / 'paths.png').stat().st_size > 1000
 
 

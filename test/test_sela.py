@@ -135,3 +135,26 @@ def test_goal_reached():
     sela = SELA(np.zeros((2, 1)), np.zeros((2, 2)), PointMotion(), goal=[2.0, 2.0])
     assert sela.goal_reached([1.95, 2.05])
     assert not sela.goal_reached([1.9, 1.9])
+
+
+@pytest.mark.parametrize('method', ['sela', 'ite_uncertainty', 'oracle'])
+def test_a_mission_visits_its_goals_in_order_and_carries_learning(method):
+    world, problem = toy()
+    problem.via = ((1.0, -0.5), (-0.5, 1.0))
+    problem.max_steps = 200
+    visits = []
+    execute = world.execute
+
+    def execute_and_watch(index):  # the true pose after every step
+        out = execute(index)
+        visits.append(world.true_pose())
+        return out
+
+    world.execute = execute_and_watch
+    result = METHODS[method](world, problem, np.random.default_rng(0))
+    assert result.success and len(result.goal_steps) == 3
+    assert result.goal_steps == sorted(result.goal_steps)
+    offset = result.learning_iterations  # learning trials also move the robot
+    for goal, steps in zip([*problem.via, (2.0, 2.0)], result.goal_steps):
+        assert np.linalg.norm(visits[offset + steps - 1] - goal) < 0.1
+    np.testing.assert_allclose(problem.goal, (2.0, 2.0))  # the last goal again after

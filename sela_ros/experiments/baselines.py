@@ -15,6 +15,9 @@ Choices (documented because the paper leaves them open):
   observed pose. The oracle uses the true pose and the damaged robot's true outcomes.
 * A step cap (``Problem.max_steps``) on task steps, or a planning error (robot off the map
   or in an obstacle), ends the run as a failure.
+* A mission of several goals (``Problem.via``, then ``Problem.goal``) visits them in order;
+  the step cap is for the whole mission; whatever a method learns (SELA, or the model
+  frozen after a learning phase) carries from one goal to the next.
 """
 from __future__ import annotations
 
@@ -60,7 +63,8 @@ class Problem:
         candidates: ``(M, d)`` behaviour descriptors normalised to ``[0, 1]^d``.
         prior_gr: ``(M, k)`` generic rewards on the intact robot (prior mean).
         motion: ``PointMotion`` or ``SE2Motion``.
-        goal: goal ``(x, y)``.
+        goal: goal ``(x, y)`` (the last one of a mission).
+        via: goals ``((x, y), ...)`` to reach, in order, before ``goal`` (default none).
         planner: ``(start_xy, goal_xy) -> path``; None for the straight line.
         config: SELA parameters (GP, UCB, lookahead, goal eps).
         max_steps: task-step cap (100 toy).
@@ -82,6 +86,7 @@ class Problem:
     prior_gr: np.ndarray
     motion: object
     goal: np.ndarray
+    via: tuple = ()
     planner: Callable | None = None
     config: SELAConfig = dataclasses.field(default_factory=SELAConfig)
     max_steps: int = 100
@@ -115,6 +120,8 @@ class RunResult:
     success: bool
     steps: int
     learning_iterations: int
+    goal_steps: list = dataclasses.field(default_factory=list)  # task steps when each goal
+    # of the mission was reached
 
 
 def _reached(env, problem) -> bool:
@@ -130,29 +137,49 @@ def _waypoint(problem, pose):
 
 
 def _task_phase(env, problem, choose, learn=None, learning_iterations=0) -> RunResult:
-    """Step with ``choose(observed_pose) -> index`` until the goal or the step cap."""
+    """Step with ``choose(observed_pose) -> index`` to each goal in turn or the step cap.
+
+    ``problem.goal`` is the goal being walked to while a leg of the mission runs (``choose``
+    reads it there), and the last goal again at the end.
+    """
     steps = 0
+    reached = []
+    last = problem.goal
     try:
-        while steps < problem.max_steps:
-            if _reached(env, problem):
-                return RunResult(True, steps, learning_iterations)
-            before = np.asarray(env.observed_pose(), dtype=float).copy()
-            index = choose(before)
-            falls = getattr(env, 'falls', 0)
-            after = env.execute(index)
-            steps += 1
-            if learn is not None:
-                learn(index, observed_generic_reward(before, after, problem.motion),
-                      getattr(env, 'falls', 0) > falls)
+        for goal in [*problem.via, last]:
+            problem.goal = np.asarray(goal, dtype=float)
+            while not _reached(env, problem):
+                if steps >= problem.max_steps:
+                    return RunResult(False, steps, learning_iterations, reached)
+                before = np.asarray(env.observed_pose(), dtype=float).copy()
+                index = choose(before)
+                falls = getattr(env, 'falls', 0)
+                after = env.execute(index)
+                steps += 1
+                if learn is not None:
+                    learn(index, observed_generic_reward(before, after, problem.motion),
+                          getattr(env, 'falls', 0) > falls)
+            reached.append(steps)
     except PlanningError:
-        return RunResult(False, steps, learning_iterations)
-    return RunResult(_reached(env, problem), steps, learning_iterations)
+        return RunResult(False, steps, learning_iterations, reached)
+    finally:
+        problem.goal = last
+    return RunResult(True, steps, learning_iterations, reached)
+
+
+def _ask(sela, problem):
+    """``choose`` for a SELA model: the index it picks toward the current goal."""
+    def choose(pose):
+        if sela.goal is None or not np.array_equal(sela.goal, np.asarray(problem.goal)[:2]):
+            sela.set_goal(problem.goal)
+        return sela.ask(pose).index
+    return choose
 
 
 def _exploit(env, problem, sela, learning_iterations):
     """Task phase with a frozen model: greedy (alpha 0) on its posterior mean."""
     sela.config = dataclasses.replace(sela.config, acquisition_ucb_alpha=0.0)
-    return _task_phase(env, problem, lambda pose: sela.ask(pose).index,
+    return _task_phase(env, problem, _ask(sela, problem),
                        learning_iterations=learning_iterations)
 
 
@@ -165,7 +192,7 @@ def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
         sela.tell_fall(index, fallen)
         sela.tell(index, gr)
 
-    return _task_phase(env, problem, lambda pose: sela.ask(pose).index, learn=learn)
+    return _task_phase(env, problem, _ask(sela, problem), learn=learn)
 
 
 def _learning_step(env, problem, sela, index):

@@ -14,9 +14,10 @@ Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measureme
   metres ahead (default 0.6 m; the hexapod's gaits move 0-0.7 m per 3 s). Without
   obstacles A* on a grid gives the same straight path. With ``--map`` (a course name such
   as ``maze``, or a map YAML) the optimal grid path on that map, ``--inflation`` metres
-  clear of obstacles (:class:`~sela_ros.core.planning.GridPlanner`); the goal defaults to
-  the course's last goal, and a gait that ends inside an obstacle counts as a collision
-  (the simulator has no walls: the map is the planner's). See ``docs/course_results.md``.
+  clear of obstacles (:class:`~sela_ros.core.planning.GridPlanner`); without ``--goal`` the
+  run is the course's mission (its goals in order, learning carried over), and a gait that
+  ends inside an obstacle counts as a collision (the simulator has no walls: the map is the
+  planner's). See ``docs/course_results.md``.
 * ``ite_4dir`` learns four targets in generic-reward space (dx, dy, dyaw): forward
   ``(max dx, 0, 0)``, backward ``(min dx, 0, 0)``, turn counter-clockwise
   ``(0, 0, max dyaw)`` and turn clockwise ``(0, 0, min dyaw)`` of the intact archive,
@@ -90,8 +91,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="damage spec, e.g. remove:middle_right (default, the paper's), "
                              'shorten:front_left:0.5, block:rear_right.knee=0.2')
     parser.add_argument('--goal', type=arguments.goal, default=None,
-                        help="goal X,Y in metres from the start (default 2,2, or the "
-                             "course's last goal with --map)")
+                        help="goal X,Y in metres from the start (default 2,2; with --map: "
+                             "the course's goals in order, a mission)")
     parser.add_argument('--map', type=_course_map, default=None,
                         help='plan on this map: a shipped course (wall_gap, corridor, maze) '
                              "or a map YAML (map_server's or the project's format)")
@@ -140,7 +141,7 @@ def ite_targets(prior_gr) -> np.ndarray:
 
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
-                 fall_risk=None, planner=None) -> Problem:
+                 fall_risk=None, planner=None, via=()) -> Problem:
     defaults = SELAConfig()
     config = SELAConfig(planner_lookahead=lookahead,
                         fall_risk_threshold=fall_risk or defaults.fall_risk_threshold,
@@ -152,6 +153,7 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
         prior_gr=archive.generic_reward,
         motion=SE2Motion(),
         goal=np.asarray(goal, dtype=float),
+        via=tuple(via),
         planner=planner,
         config=config,
         max_steps=max_steps,
@@ -191,7 +193,8 @@ def _worker_planner(map_path, inflation):
 def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
-     ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk, map_path, inflation) = job
+     ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk, map_path, inflation,
+     via) = job
     from sela_ros.experiments.courses import CourseEnvironment
     from sim_bridge.experiment_env import HexapodEnvironment
 
@@ -206,7 +209,7 @@ def run_method(job):
         env = CourseEnvironment(sim, grid) if grid is not None else sim
         problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
                                ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
-                               alpha=alpha, fall_risk=fall_risk, planner=planner)
+                               alpha=alpha, fall_risk=fall_risk, planner=planner, via=via)
         result = METHODS[name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),
@@ -215,7 +218,8 @@ def run_method(job):
                'wall_seconds': time.perf_counter() - start,
                'final_distance': float(np.hypot(final[0] - goal[0], final[1] - goal[1]))}
         if grid is not None:
-            out.update(collisions=int(env.collisions), path=env.path)
+            out.update(collisions=int(env.collisions), path=env.path,
+                       goal_steps=list(result.goal_steps))
         return out
 
 
@@ -241,6 +245,8 @@ def run(args, progress=None) -> dict:
     map_path, course = getattr(args, 'map', None) or (None, None)
     inflation = getattr(args, 'inflation', DEFAULT_INFLATION)
     goal = args.goal or (list(course.goals[-1]) if course else [2.0, 2.0])
+    # On a course without --goal: the course's mission, its goals in order.
+    via = [list(g) for g in course.goals[:-1]] if course and not args.goal else []
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     jobs = []
     for seed in seeds:
@@ -248,7 +254,7 @@ def run(args, progress=None) -> dict:
             jobs.append((name, child, os.path.abspath(args.archive), args.damage, goal,
                          args.noise_std, args.lookahead, args.max_steps,
                          args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
-                         args.fall_risk, map_path, inflation))
+                         args.fall_risk, map_path, inflation, via))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -279,6 +285,7 @@ def run(args, progress=None) -> dict:
         if map_path:
             methods[name]['collisions'] = [r['collisions'] for r in runs]
             methods[name]['paths'] = [r['path'] for r in runs]
+            methods[name]['goal_steps'] = [r['goal_steps'] for r in runs]
         timing[name] = {'sim_seconds': float(sum(r['sim_seconds'] for r in runs)),
                         'wall_seconds': float(sum(r['wall_seconds'] for r in runs))}
     summary = {name: {'successes': int(sum(m['success'])),
@@ -295,7 +302,7 @@ def run(args, progress=None) -> dict:
     return {'scenario': 'hexapod', 'replicates': args.replicates, 'methods': methods,
             'seed': args.seed,
             'parameters': {'noise_std': args.noise_std, 'max_steps': args.max_steps,
-                           'damage': args.damage, 'goal': list(goal),
+                           'damage': args.damage, 'goal': list(goal), 'via': via,
                            'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,
                            'planner': 'grid' if map_path else 'straight_line',
                            'map': map_path, 'course': course.name if course else None,
