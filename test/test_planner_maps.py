@@ -13,7 +13,7 @@ from rcl_interfaces.srv import SetParameters
 
 from sela_ros.core.maps import load_map_file
 from sela_ros.nodes import conversions as conv
-from sela_ros.nodes.qos import LATCHED_QOS, STATE_QOS
+from sela_ros.nodes.interface import LATCHED_QOS, STATE_QOS
 
 from ros_graph import Client, NodeProcesses
 
