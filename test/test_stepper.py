@@ -13,6 +13,7 @@ from sela_ros.core.stepper_io import (
     AdaptRequested,
     ClearRequested,
     GoalReceived,
+    GoalsReceived,
     HoldChanged,
     Level,
     OutcomeReceived,
@@ -369,3 +370,47 @@ def test_every_state_is_visited():
     d.step(request)
     visited |= d.states
     assert visited == set(State), visited
+
+
+def test_a_mission_of_several_goals_visits_them_in_order_and_keeps_learning():
+    d = Driver(adapt_on_start=True)
+    d(PoseObserved((0.0, 0.0, 0.0), stamp=0.0))
+    out = d(GoalsReceived(((0.4, 0.0), (0.4, 0.4), (0.0, 0.4))))
+    request = only(out, RequestPlan)
+    assert np.allclose(request.goal, (0.4, 0.0)) and d.stepper.goal_count == 3
+    taken = only(out, PublishStatus).values
+    assert taken['goal'].split()[:2] == ['0.400000', '0.000000'] and taken['goals'] == '3'
+    reached, requests = [], [request]
+    for _ in range(12):  # each gait lands on its goal: one step per goal
+        gait = only(d.plan(requests[-1], waypoint=requests[-1].goal), SendGait)
+        end = np.append(requests[-1].goal, 0.0)  # the gait lands on the goal exactly
+        gr = d.stepper.sela.motion.generic_reward(d.stepper.pending.pose, end)
+        out = d(OutcomeReceived(gait.behavior_id, tuple(gr), tuple(end)), dt=3.0)
+        out += d(VerdictReceived(gait.behavior_id, False))
+        reached += [s.values for s in of(out, PublishStatus) if 'goal_reached' in s.values]
+        if d.state is State.DONE:
+            break
+        requests.append(only(out, RequestPlan))
+    assert [r['goal_reached'].split()[:2] for r in reached] == [
+        ['0.400000', '0.000000'], ['0.400000', '0.400000']]
+    assert [r['goal_index'] for r in reached] == ['2', '3']
+    assert [tuple(np.round(r.goal, 3)) for r in requests] == [(0.4, 0.0), (0.4, 0.4),
+                                                              (0.0, 0.4)]
+    final = [s for s in of(d.log, PublishStatus) if 'success' in s.values][-1].values
+    assert final['success'] == 'True' and final['goal_index'] == '3'
+    assert len(d.stepper.sela.observations[0]) == 3  # learnt on every leg, never forgotten
+    # A plain goal afterwards is a mission of one.
+    d(GoalReceived((1.0, 1.0)))
+    assert d.stepper.goal_count == 1 and d.stepper.goals_left == []
+    assert d(GoalsReceived(())) and d.stepper.goal_count == 1  # an empty path: refused
+
+
+def test_a_mission_comes_back_with_its_remaining_goals_after_a_restart():
+    d = Driver()
+    d(PoseObserved((0.0, 0.0, 0.0), stamp=0.0))
+    d(GoalsReceived(((2.0, 0.0), (2.0, 2.0))))
+    snapshot = d.stepper.snapshot()
+    back = Driver()
+    back.stepper.restore(snapshot, 0.0)
+    assert [g.tolist() for g in back.stepper.goals_left] == [[2.0, 2.0]]
+    assert back.stepper.goal_count == 2 and back.stepper.goal_index == 1

@@ -30,6 +30,8 @@ def mission_snapshot(stepper):
         'state': stepper.state.value, 'steps': stepper.steps,
         'failed_steps': stepper.failed_steps,
         'goal': None if stepper.goal is None else _list(stepper.goal),
+        'goals_left': [_list(g) for g in stepper.goals_left],
+        'goal_index': stepper.goal_index, 'goal_count': stepper.goal_count,
         'pose': None if pose is None else _list(pose),
         'adapting': stepper.logic.adapting, 'adaptations': stepper.logic.adaptations,
         'last': None if last is None else [int(last[0]), _list(last[1])],
@@ -57,6 +59,9 @@ def restore_mission(stepper, snapshot, now):
         return []
     stepper.goal = np.array(m['goal'], dtype=float)
     stepper.sela.set_goal(stepper.goal)
+    stepper.goals_left = [np.array(g, dtype=float) for g in m.get('goals_left', [])]
+    stepper.goal_index = int(m.get('goal_index', 1))
+    stepper.goal_count = int(m.get('goal_count', 1 + len(stepper.goals_left)))
     stepper.steps = int(m['steps'])
     stepper.reset_needed = bool(m.get('reset_needed', False))
     pending = m.get('pending')

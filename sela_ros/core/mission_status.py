@@ -2,8 +2,10 @@
 
 The ``sela_adapter`` node publishes these values on ``diagnostics`` (name ``sela_adapter:
 mission``) and :class:`sela_ros.tools.mission_client.MissionClient` reads them back: a
-status with ``step`` is a step, with ``adapt`` a detection, with ``goal`` the goal taken,
-with ``success`` the end of the mission. Vectors are space-separated numbers. ROS-free.
+status with ``step`` is a step, with ``adapt`` a detection, with ``goal`` the goal taken
+(and with ``goal_reached`` too: a goal of a mission of several was reached, on to the next),
+with ``success`` the end of the mission. ``goal_index`` of ``goals`` says where a mission of
+several goals stands. Vectors are space-separated numbers. ROS-free.
 """
 import math
 
@@ -15,7 +17,8 @@ def mission_status(stepper, reward=None):
     values = {'state': stepper.state.value, 'steps': stepper.steps,
               'adapting': stepper.logic.adapting, 'adaptations': stepper.logic.adaptations,
               'observations': len(stepper.sela.observations[0]),
-              'failed_steps': stepper.failed_steps}
+              'failed_steps': stepper.failed_steps,
+              'goal_index': stepper.goal_index, 'goals': stepper.goal_count}
     p = stepper.pending
     if reward is not None:
         r = p.record
@@ -33,10 +36,13 @@ def mission_status(stepper, reward=None):
     return {k: str(v) for k, v in values.items()}
 
 
-def goal_status(stepper, message):
-    """Says which goal the mission now has (a client waits for it)."""
-    return PublishStatus(Level.OK, message,
-                         dict(mission_status(stepper), goal=vector_text(stepper.goal)))
+def goal_status(stepper, message, reached=None, reached_steps=None):
+    """Says which goal the mission now has (a client waits for it); with ``reached``, the
+    goal of the mission just reached, in ``reached_steps`` steps."""
+    values = dict(mission_status(stepper), goal=vector_text(stepper.goal))
+    if reached is not None:
+        values.update(goal_reached=vector_text(reached), goal_reached_steps=str(reached_steps))
+    return PublishStatus(Level.OK, message, values)
 
 
 def detection_status(stepper, verdict, message):

@@ -31,6 +31,7 @@ from sela_ros.core.stepper_io import (
     AskedPlan,
     ClearRequested,
     GoalReceived,
+    GoalsReceived,
     HoldChanged,
     Level,
     OutcomeReceived,
@@ -66,6 +67,8 @@ class MissionStepper:
         self.logic = MissionLogic(sela, self.config.adapt_on_start, self.config.reset_on_fall)
         self.state = State.IDLE
         self.goal = None
+        self.goals_left = []  # a mission's goals after the current one, in order
+        self.goal_index = self.goal_count = 0  # the current goal's rank (from 1), how many
         self.steps = 0
         self.failed_steps = 0
         self.result = None  # True / False once DONE
@@ -82,7 +85,8 @@ class MissionStepper:
         self.last_id = None  # id of the latest outcome processed
         self._deadline = None  # of the reset
         self._handlers = {
-            GoalReceived: self._on_goal, PoseObserved: self._on_pose,
+            GoalReceived: self._on_goal, GoalsReceived: self._on_goals,
+            PoseObserved: self._on_pose,
             PlanReceived: self._on_plan, OutcomeReceived: self._on_outcome,
             VerdictReceived: self._on_verdict, AdaptRequested: self._on_adapt,
             ClearRequested: self._on_clear, ResetDone: self._on_reset_done,
@@ -112,10 +116,22 @@ class MissionStepper:
         return out
 
     def _on_goal(self, event, now):
-        goal = np.asarray(event.goal, dtype=float).reshape(-1)[:2]
+        return self._take_goals([event.goal])
+
+    def _on_goals(self, event, now):
+        if not event.goals:
+            return [Report(Level.ERROR, 'goal path rejected: it has no poses')]
+        return self._take_goals(list(event.goals))
+
+    def _take_goals(self, goals):
+        """The mission is now ``goals`` in order (one goal: a plain goal)."""
+        goal = np.asarray(goals[0], dtype=float).reshape(-1)[:2]
+        rest = [np.asarray(g, dtype=float).reshape(-1)[:2] for g in goals[1:]]
         if (self.goal is not None and np.array_equal(goal, self.goal)
                 and self.state not in (State.IDLE, State.DONE)):
+            self.goals_left, self.goal_count = rest, self.goal_index + len(rest)
             return [goal_status(self, 'goal already in progress')]  # it goes on
+        self.goals_left, self.goal_index, self.goal_count = rest, 1, len(goals)
         self.sela.set_goal(goal)
         self.goal = goal
         self._plan = None
@@ -304,7 +320,9 @@ class MissionStepper:
         if pose is None:
             return []
         if self.sela.goal_reached(pose):
-            return self._finish(True, pose)
+            if not self.goals_left:
+                return self._finish(True, pose)
+            return self._next_goal(pose) + self._start_step(now)
         if self.steps >= self.config.max_steps:
             return self._finish(False, pose)
         out = []
@@ -342,6 +360,19 @@ class MissionStepper:
         d = p.decision
         return [SendGait(p.behavior_id, int(d.index), d.predicted_gr,
                          self.logic.prediction_sigma(d)), self._save()]
+
+    def _next_goal(self, pose):
+        """A goal of the mission is reached: on to the next, with all that was learned."""
+        reached, steps = self.goal, self.steps
+        self.goal = self.goals_left.pop(0)
+        self.sela.set_goal(self.goal)
+        self.goal_index += 1
+        self.steps = 0
+        self._plan = None
+        message = (f'goal {self.goal_index - 1}/{self.goal_count} reached after {steps} steps')
+        return [Report(Level.OK, f'{message}, pose ({pose[0]:.2f}, {pose[1]:.2f}); next goal '
+                       f'({self.goal[0]:.2f}, {self.goal[1]:.2f})'),
+                goal_status(self, message, reached=reached, reached_steps=steps), self._save()]
 
     def _finish(self, success, pose):
         self.state = State.DONE

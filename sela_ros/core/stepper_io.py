@@ -21,6 +21,14 @@ class GoalReceived:
 
 
 @dataclass(frozen=True)
+class GoalsReceived:
+    """A mission of several goals, visited in order (a ``nav_msgs/Path`` on ``goal_path``,
+    as waypoint followers take it); learning carries from one goal to the next."""
+
+    goals: tuple  # ((x, y), ...) in the odom frame
+
+
+@dataclass(frozen=True)
 class PoseObserved:
     pose: tuple  # (x, y, yaw): odometry
     stamp: float = None  # its time (s, the simulator's clock); None: unknown

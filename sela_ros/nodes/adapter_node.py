@@ -53,6 +53,8 @@ class SelaAdapter(Node):
         for topic, what, event in (
                 (ifc.GOAL, 'goal rejected', lambda m: io.GoalReceived(
                     tuple(conv.goal_from_pose_stamped(m, self.frame_id)))),
+                (ifc.GOAL_PATH, 'goal path rejected', lambda m: io.GoalsReceived(
+                    tuple(conv.goals_from_path(m, self.frame_id)))),
                 (ifc.ODOM, 'ignored odometry', lambda m: io.PoseObserved(
                     tuple(conv.pose_from_odometry(m)), conv.time_from_msg(m.header.stamp))),
                 (ifc.OUTCOME, 'ignored outcome', conv.outcome_event),
@@ -91,7 +93,7 @@ class SelaAdapter(Node):
         if old is not None and old.goal is not None and old.state is not io.State.DONE:
             if old.odom is not None:  # the new stepper goes on with the goal, from here
                 self._feed(io.PoseObserved(tuple(old.odom), old.odom_stamp))
-            self._feed(io.GoalReceived(tuple(old.goal)))
+            self._feed(io.GoalsReceived((tuple(old.goal), *map(tuple, old.goals_left))))
 
     def _resume(self):
         path = self.writer.path
@@ -114,7 +116,7 @@ class SelaAdapter(Node):
     # --- inputs -> events ----------------------------------------------------------------
 
     def _translate(self, msg, make_event, what):
-        if isinstance(msg, ifc.GOAL.type):
+        if isinstance(msg, (ifc.GOAL.type, ifc.GOAL_PATH.type)):
             self.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
         try:
             event = make_event(msg)

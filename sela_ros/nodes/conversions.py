@@ -244,6 +244,24 @@ def goal_from_pose_stamped(msg, expected_frame='odom'):
     return _finite_array([msg.pose.position.x, msg.pose.position.y], 'goal_pose', 2)
 
 
+def goals_from_path(msg, expected_frame='odom'):
+    """The goals ``[(x, y), ...]`` of a mission sent as a nav_msgs/Path, in order.
+
+    Each pose's frame (or, when empty, the path's) must be ``expected_frame``.
+    """
+    if not msg.poses:
+        raise MessageError('goal_path: the path has no poses (expected the goals in order)')
+    goals = []
+    for i, pose in enumerate(msg.poses):
+        frame = pose.header.frame_id or msg.header.frame_id
+        if frame not in (expected_frame, ''):
+            raise MessageError(f"goal_path: pose {i} is in frame '{frame}'; send the goals "
+                               f"in '{expected_frame}'")
+        goals.append(tuple(_finite_array([pose.pose.position.x, pose.pose.position.y],
+                                         f'goal_path pose {i}', 2)))
+    return goals
+
+
 def pose_stamped(xy, yaw=0.0, stamp=0.0, frame_id='odom'):
     msg = PoseStamped()
     msg.header.stamp = time_to_msg(stamp) if not isinstance(stamp, Time) else stamp

@@ -104,6 +104,8 @@ JOINT_STATES = Topic('hexapod/joint_states', JointState, STATE_QOS)
 BEHAVIOR = Topic('hexapod/behavior', Float64MultiArray, COMMAND_QOS)
 OUTCOME = Topic('hexapod/behavior_outcome', Float64MultiArray, DECISION_QOS)
 GOAL = Topic('goal_pose', PoseStamped, GOAL_QOS)
+# A mission of several goals, in order (as waypoint followers take them); QoS as goal_pose.
+GOAL_PATH = Topic('goal_path', Path, GOAL_QOS)
 PATH = Topic('planner/path', Path, LATCHED_QOS, owner=PLANNER)
 MAP = Topic('planner/map', OccupancyGrid, LATCHED_QOS, owner=PLANNER)
 # A map for the planner, as map_server publishes it (reliable, transient local).
@@ -120,8 +122,8 @@ ADAPT = Service('sela_adapter/adapt', Trigger, SELA_ADAPTER)
 CLEAR = Service('sela_adapter/clear', Trigger, SELA_ADAPTER)
 RESET = Service('sim_bridge/reset', Trigger, SIM_BRIDGE)
 
-TOPICS = (CLOCK, ODOM, JOINT_STATES, BEHAVIOR, OUTCOME, GOAL, PATH, MAP, MAP_IN, TARGET,
-          PREDICTION, REWARD, VERDICT, DIAGNOSTICS)
+TOPICS = (CLOCK, ODOM, JOINT_STATES, BEHAVIOR, OUTCOME, GOAL, GOAL_PATH, PATH, MAP, MAP_IN,
+          TARGET, PREDICTION, REWARD, VERDICT, DIAGNOSTICS)
 SERVICES = (MAKE_PLAN, ADAPT, CLEAR, RESET)
 
 

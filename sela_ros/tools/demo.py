@@ -37,11 +37,12 @@ def build_parser():
                         help="damage spec, e.g. 'remove:middle_right' (default), "
                         "'shorten:front_left:0.5', 'block:rear_right.knee', 'intact'")
     parser.add_argument('--goal', type=arguments.goal, default=None, metavar='X,Y',
-                        help="goal in the odom frame, metres (default: 2,2, or the course's "
-                        'last goal with --course)')
+                        help="goal in the odom frame, metres (default: 2,2; with --course: "
+                        "the course's goals, a mission)")
     parser.add_argument('--course', type=_course, default=None, metavar='NAME',
                         help='an obstacle course shipped in config/maps (wall_gap, corridor, '
-                        "maze) or a map YAML: the planner's map")
+                        "maze) or a map YAML: the planner's map; without --goal the mission "
+                        "visits the course's goals in order")
     parser.add_argument('--seed', type=int, default=0, help='observation-noise seed')
     parser.add_argument('--gui', action='store_true', help="show PyBullet's window")
     parser.add_argument('--params-file', default=None,
@@ -65,8 +66,10 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     damage = args.damage
     map_path, course = args.course or (None, None)
-    if args.goal is None:
-        args.goal = list(course.goals[-1]) if course else [2.0, 2.0]
+    # A course without --goal: its mission (goals in order); else the one goal.
+    args.goals = [list(g) for g in course.goals] if course and args.goal is None else \
+        [list(args.goal or (2.0, 2.0))]
+    args.goal = args.goals[-1]
     from sela_ros.tools.ros_env import (
         ensure_ros_environment,
         executable,
@@ -104,7 +107,8 @@ def main(argv=None):
             procs[name] = subprocess.Popen(
                 cmd, env=env, stdout=logs[name] if to_file else None,
                 stderr=subprocess.STDOUT if to_file else None)
-        print(f"sela-demo: damage '{damage}', goal ({args.goal[0]}, {args.goal[1]}), seed "
+        goals = ', '.join(f'({g[0]}, {g[1]})' for g in args.goals)
+        print(f"sela-demo: damage '{damage}', goal(s) {goals}, seed "
               f"{args.seed}, ROS_DOMAIN_ID={env.get('ROS_DOMAIN_ID', '0')}, nodes: "
               + ', '.join(f'{n}[{p.pid}]' for n, p in procs.items()), flush=True)
         summary = run_client(args, damage, out, procs)
@@ -142,7 +146,7 @@ def run_client(args, damage, out, procs):
     trajectory = []
     spin_once = lambda timeout: rclpy.spin_once(node, timeout_sec=timeout)  # noqa: E731
     mission = MissionClient(node, spin_once)
-    printed = {'steps': 0, 'detections': 0}
+    printed = {'steps': 0, 'detections': 0, 'goals': 0}
 
     def print_progress():
         for s in mission.steps[printed['steps']:]:
@@ -156,7 +160,11 @@ def run_client(args, damage, out, procs):
         for d in mission.detections[printed['detections']:]:
             print(f"        damage detector: error {d.error:.3f} m > "
                   f"{d.threshold} m -> {d.adapt}", flush=True)
-        printed.update(steps=len(mission.steps), detections=len(mission.detections))
+        for g in mission.goals_reached[printed['goals']:]:
+            print(f'        goal {g.index}/{len(args.goals)} ({g.goal[0]:.2f}, {g.goal[1]:.2f}) '
+                  f'reached in {g.steps} steps', flush=True)
+        printed.update(steps=len(mission.steps), detections=len(mission.detections),
+                       goals=len(mission.goals_reached))
 
     def on_odom(msg):
         pose = conv.pose_from_odometry(msg)
@@ -168,7 +176,10 @@ def run_client(args, damage, out, procs):
                             qos_for={t.root_name: t.qos for t in recorded}.get)
     start = time.monotonic()
     try:
-        mission.go_to_pose(*args.goal, timeout=args.timeout)
+        if len(args.goals) > 1:
+            mission.follow_goals(args.goals, timeout=args.timeout)
+        else:
+            mission.go_to_pose(*args.goal, timeout=args.timeout)
         while not mission.is_task_complete() and time.monotonic() - start < args.timeout:
             print_progress()
             dead = [n for n, p in procs.items() if p.poll() is not None]
@@ -190,7 +201,9 @@ def run_client(args, damage, out, procs):
     final_true = trajectory[-1][1:3] if trajectory else None
     summary = {
         'success': bool(result and result.success), 'damage': damage,
-        'goal': list(args.goal),
+        'goal': list(args.goal), 'goals': args.goals,
+        'goals_reached': [{'goal': g.goal.tolist(), 'steps': g.steps}
+                          for g in mission.goals_reached],
         'seed': args.seed, 'steps': len(steps),
         'adaptations': result.adaptations if result else None,
         'learning_started_at_step': next((int(s['step']) for s in steps
@@ -210,7 +223,7 @@ def run_client(args, damage, out, procs):
         from sela_ros.core.maps import load_map_file
 
         grid = load_map_file(args.course[0])
-    plot_trajectory(out / 'trajectory.png', trajectory, steps, args.goal, damage, grid)
+    plot_trajectory(out / 'trajectory.png', trajectory, steps, args.goals, damage, grid)
     verdict = 'goal reached' if summary['success'] else 'goal NOT reached'
     print(f"sela-demo: {verdict} in {summary['steps']} steps "
           f"(adaptation from step {summary['learning_started_at_step']}, "
@@ -224,7 +237,7 @@ def _metres(value):
     return 'unknown' if value is None else f'{value:.3f} m'
 
 
-def plot_trajectory(path, trajectory, steps, goal, damage, grid=None):
+def plot_trajectory(path, trajectory, steps, goals, damage, grid=None):
     import matplotlib
 
     matplotlib.use('Agg')
@@ -243,7 +256,9 @@ def plot_trajectory(path, trajectory, steps, goal, damage, grid=None):
         w = [float(v) for v in s['waypoint'].split()]
         ax.plot([p[0], w[0]], [p[1], w[1]], color='tab:orange', lw=0.6, alpha=0.6)
         ax.plot(*p[:2], 'o', ms=3, color='tab:red' if s['adapting'] == 'True' else 'tab:gray')
-    ax.add_patch(plt.Circle(goal, 0.1, color='tab:green', alpha=0.4, label='goal (0.1 m)'))
+    for i, goal in enumerate(goals):
+        ax.add_patch(plt.Circle(goal, 0.1, color='tab:green', alpha=0.4,
+                                label='goal (0.1 m)' if i == 0 else None))
     ax.plot(0, 0, 'ks', label='start')
     ax.set_aspect('equal')
     ax.set_xlabel('x (m)')

@@ -1,6 +1,7 @@
 """``MissionClient``: send a goal to a sela_ros stack and follow its mission.
 
 In the spirit of nav2_simple_commander's ``BasicNavigator``: :meth:`MissionClient.go_to_pose`,
+:meth:`~MissionClient.follow_goals` (a mission of several goals, as ``followWaypoints``),
 :meth:`~MissionClient.is_task_complete`, :meth:`~MissionClient.get_feedback`,
 :meth:`~MissionClient.get_result`, and a ``namespace`` argument to drive a stack started
 under a namespace. The demo, the tests and the benchmarks use it; it is the one reader of
@@ -66,6 +67,15 @@ class Detection:
 
 
 @dataclass
+class GoalReached:
+    """A goal of a mission of several was reached; the mission goes on to the next."""
+
+    index: int  # its rank in the mission, from 1
+    goal: np.ndarray
+    steps: int  # steps it took from the previous goal
+
+
+@dataclass
 class MissionResult:
     success: bool
     steps: int
@@ -86,10 +96,12 @@ class MissionClient:
         self.spin_once = spin_once
         self.namespace = namespace.rstrip('/')
         self.statuses = deque(maxlen=STATUSES_KEPT)  # heard on diagnostics (any node)
-        self.steps, self.detections = [], []
+        self.steps, self.detections, self.goals_reached = [], [], []
         self.goal = self.result = self._acked = None
         self._goal_pub = node.create_publisher(ifc.GOAL.type, self.name(ifc.GOAL.name),
                                                ifc.GOAL.qos)
+        self._goals_pub = node.create_publisher(ifc.GOAL_PATH.type,
+                                                self.name(ifc.GOAL_PATH.name), ifc.GOAL_PATH.qos)
         node.create_subscription(ifc.DIAGNOSTICS.type, self.name(ifc.DIAGNOSTICS.name),
                                  self._diagnostics, ifc.DIAGNOSTICS.qos)
 
@@ -111,6 +123,11 @@ class MissionClient:
                 self.detections.append(Detection(int(values['behavior_id']),
                                                  float(values['error']), values['threshold'],
                                                  values['adapt']))
+            elif 'goal_reached' in values and self._acked:
+                self.goals_reached.append(GoalReached(
+                    int(values['goal_index']) - 1, np.array(values['goal_reached'].split(),
+                                                            float),
+                    int(values['goal_reached_steps'])))
             elif 'goal' in values and self.goal is not None and np.allclose(
                     np.array(values['goal'].split(), float), self.goal):
                 self._acked = True
@@ -125,12 +142,15 @@ class MissionClient:
                 raise TimeoutError(f'timed out after {timeout} s waiting for {what}')
             self.spin_once(0.05)
 
-    def wait_until_ready(self, timeout=60.0):
-        """Wait until the adapter hears goals and this client hears the adapter."""
+    def wait_until_ready(self, timeout=60.0, publisher=None):
+        """Wait until the adapter hears goals (on ``publisher``'s topic; default goal_pose)
+        and this client hears the adapter."""
+        publisher = publisher or self._goal_pub
+
         def ready():
             talkers = {i.node_name for i in self.node.get_publishers_info_by_topic(
                 self.node.resolve_topic_name(self.name(ifc.DIAGNOSTICS.name)))}
-            return ifc.SELA_ADAPTER in talkers and self._goal_pub.get_subscription_count() > 0
+            return ifc.SELA_ADAPTER in talkers and publisher.get_subscription_count() > 0
         self.spin_until(ready, timeout, 'the sela_adapter')
 
     def wait_for_goal_listeners(self, count, timeout=60.0):
@@ -141,18 +161,29 @@ class MissionClient:
     def go_to_pose(self, x, y, frame_id='odom', timeout=60.0, resend_period=2.0):
         """Send the goal (x, y); returns once the adapter has taken it (resent until then:
         ``goal_pose`` is volatile, as RViz sends it)."""
-        self.wait_until_ready(timeout)
-        self.goal = np.array([x, y], dtype=float)
-        self.result, self._acked = None, False
+        self._send(self._goal_pub, conv.pose_stamped((x, y), frame_id=frame_id), (x, y),
+                   timeout, resend_period)
+
+    def follow_goals(self, goals, frame_id='odom', timeout=60.0, resend_period=2.0):
+        """Send a mission of several goals ``[(x, y), ...]``, visited in order, as a
+        nav_msgs/Path on ``goal_path``; returns once the adapter has taken it. Each goal
+        reached is appended to :attr:`goals_reached`; the result comes after the last."""
+        path = conv.path_to_msg(np.asarray(goals, dtype=float), frame_id=frame_id)
+        self._send(self._goals_pub, path, goals[0], timeout, resend_period)
+
+    def _send(self, publisher, msg, first_goal, timeout, resend_period):
+        self.wait_until_ready(timeout, publisher)
+        self.goal = np.array(first_goal, dtype=float)
+        self.result, self._acked, self.goals_reached = None, False, []
         deadline = time.monotonic() + timeout
         while not self._acked:
-            self._goal_pub.publish(conv.pose_stamped((x, y), frame_id=frame_id))
+            publisher.publish(msg)
             try:
                 self.spin_until(lambda: self._acked, resend_period, 'the goal')
             except TimeoutError:
                 if time.monotonic() > deadline:
-                    raise TimeoutError(f'the adapter did not take the goal ({x}, {y}) within '
-                                       f'{timeout} s') from None
+                    raise TimeoutError(f'the adapter did not take the goal {tuple(first_goal)} '
+                                       f'within {timeout} s') from None
 
     def publish_goal(self, x, y, frame_id='odom'):
         """Send a goal once, without waiting for it to be taken (e.g. a bad goal)."""
