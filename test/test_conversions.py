@@ -127,3 +127,16 @@ def test_verdict_round_trip(behavior_id, fire, error, threshold):
     assert got == (behavior_id, fire, error, threshold)
     with pytest.raises(conv.MessageError, match='layout label'):
         conv.verdict_from_msg(conv.prediction_to_msg(behavior_id, [0, 0, 0]))
+
+
+def test_goals_from_a_path_in_order_and_bad_paths_refused():
+    path = conv.path_to_msg([[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], frame_id='odom')
+    assert conv.goals_from_path(path) == [(1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+    with pytest.raises(conv.MessageError, match='no poses'):
+        conv.goals_from_path(conv.path_to_msg(np.zeros((0, 2))))
+    other = conv.path_to_msg([[1.0, 0.0]], frame_id='map')
+    with pytest.raises(conv.MessageError, match="pose 0 is in frame 'map'"):
+        conv.goals_from_path(other)
+    bad = conv.path_to_msg([[1.0, 0.0], [float('nan'), 1.0]])
+    with pytest.raises(conv.MessageError, match='pose 1'):
+        conv.goals_from_path(bad)
