@@ -7,7 +7,8 @@ DESIGN = {  # DESIGN.md's table (plus what the package adds), as seen in the roo
     '/sela_adapter/adapt', '/sim_bridge/reset',
 }
 ADDED = {'/hexapod/joint_states', '/planner/map', '/sela/prediction',
-         '/damage_detector/verdict', '/sela_adapter/clear'}
+         '/damage_detector/verdict', '/sela_adapter/clear',
+         '/map', '/goal_path'}  # map_server's map for the planner; a mission of many goals
 
 
 def test_root_names_are_the_design_ones():
