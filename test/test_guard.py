@@ -125,7 +125,8 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
         client.spin_until(lambda: prediction_pub.get_subscription_count() > 0
                           and outcome_pub.get_subscription_count() > 0, 60, 'the two nodes')
         # (Said once at start-up, on /diagnostics and in the log: the log keeps it.)
-        assert 'TypeError' in nodes.logs()['planner.log']
+        # The map loader names the wrongly typed field (it used to be a bare TypeError).
+        assert 'map.origin must be a list [x, y], got 5' in nodes.logs()['planner.log']
         assert 'planning on the map.* parameters instead' in nodes.logs()['planner.log']
         # It plans on the map.* parameters (bounds -1..3 m): a path to (2.5, 2.5).
         request = GetPlan.Request(start=conv.pose_stamped((0.0, 0.0), frame_id='odom'),
