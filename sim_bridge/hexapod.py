@@ -12,6 +12,7 @@ from a standing start begins with ``restoreState`` of the same settled state.
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import tempfile
@@ -65,12 +66,18 @@ from sim_bridge.damage import (  # noqa: E402
 MODEL_VERSION = 'sela-hexapod-v1'
 CONTROLLER_VERSION = controller.CONTROLLER_VERSION
 
+# What an archive that predates a key was built with: a missing key means this value.
 SIM_DEFAULTS = {
     'dt': 1.0 / 240.0,
     'gait_duration': 3.0,
     'controller_version': CONTROLLER_VERSION,
     'model_version': MODEL_VERSION,
+    'solver_iterations': 50,
 }
+
+#: Physics of the 8-D map, chosen with benchmarks/bench_physics.py: over twice the
+#: evaluations/s of the defaults, gaits ending a few cm from where the defaults put them.
+FAST_SETTINGS = {'dt': 1.0 / 120.0, 'solver_iterations': 30}
 
 # The intact model as a file, for robot_state_publisher / RViz; regenerate with
 # ``python -c "from sim_bridge.hexapod import write_urdf; write_urdf()"`` when the model changes.
@@ -91,27 +98,66 @@ COXA_MASS, FEMUR_MASS, TIBIA_MASS, FOOT_MASS = 0.12, 0.08, 0.03, 0.015
 HIP_MOUNTS = ((0.11, 0.09, math.pi / 4), (0.0, 0.10, 0.0), (-0.11, 0.09, -math.pi / 4))
 STANDING_HEIGHT = TIBIA_LENGTH + FOOT_LENGTH
 
-# Physics settings, fixed so that archives stay comparable.
+# Physics settings, fixed so that archives stay comparable (the solver's iterations and dt
+# are settings stamped in archives instead: see simulator_settings).
 MAX_FORCE = 2.5  # N m, about a Dynamixel MX-28 stall torque
 FOOT_FRICTION = 1.0
 GROUND_FRICTION = 1.0
-SOLVER_ITERATIONS = 50
 SETTLE_TIME = 0.5
 FALL_TILT = math.radians(60.0)
 FALL_HEIGHT = 0.03
 
 
 def simulator_settings(dt: float = SIM_DEFAULTS['dt'],
-                       gait_duration: float = SIM_DEFAULTS['gait_duration']) -> dict:
-    """Settings that make gait outcomes comparable; stamp archives with them."""
+                       gait_duration: float = SIM_DEFAULTS['gait_duration'],
+                       solver_iterations: int = SIM_DEFAULTS['solver_iterations']) -> dict:
+    """Settings that make gait outcomes comparable; stamp archives with them.
+
+    A longer dt and fewer solver iterations make evaluations cheaper but move where gaits
+    end by centimetres, so an archive is only valid in a simulator with its own settings.
+    """
     dt = float(dt)
     gait_duration = float(gait_duration)
     if not (math.isfinite(dt) and 0.0 < dt <= 0.01):
         raise ValueError(f'dt must be in (0, 0.01] s, got {dt}')
     if not (math.isfinite(gait_duration) and gait_duration > 0.0):
         raise ValueError(f'gait_duration must be > 0 s, got {gait_duration}')
+    if isinstance(solver_iterations, bool) or not float(solver_iterations).is_integer() \
+            or not 1 <= solver_iterations <= 1000:
+        raise ValueError(f'solver_iterations must be an integer in [1, 1000], got '
+                         f'{solver_iterations!r}')
     return {'dt': dt, 'gait_duration': gait_duration,
-            'controller_version': CONTROLLER_VERSION, 'model_version': MODEL_VERSION}
+            'controller_version': CONTROLLER_VERSION, 'model_version': MODEL_VERSION,
+            'solver_iterations': int(solver_iterations)}
+
+
+def physics_settings(metadata: dict) -> dict:
+    """Keyword arguments of :class:`Hexapod` for an archive's metadata (or settings dict).
+
+    A key the archive predates takes the value it was built with (:data:`SIM_DEFAULTS`),
+    so the shipped 2-D archive keeps running with 50 solver iterations.
+    """
+    return {key: metadata.get(key, SIM_DEFAULTS[key])
+            for key in ('dt', 'gait_duration', 'solver_iterations')}
+
+
+def read_archive_settings(path: str | os.PathLike) -> dict:
+    """:func:`physics_settings` of the archive file at ``path`` (from its JSON metadata).
+
+    sim_bridge reads the stamp itself rather than through sela_ros, which sits above it.
+
+    Raises:
+        ValueError: no such file, or no readable metadata in it.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            metadata = json.loads(str(npz['metadata']))
+    except Exception as exc:
+        raise ValueError(f'cannot read the simulator settings of archive {path}: '
+                         f'{type(exc).__name__}: {exc}') from None
+    if not isinstance(metadata, dict):
+        raise ValueError(f'archive {path}: metadata is not a JSON object')
+    return physics_settings(metadata)
 
 
 # --------------------------------------------------------------------------- URDF
@@ -256,12 +302,15 @@ class Hexapod:
         gait_duration: length of one gait (s).
         damage: damage spec string or :class:`DamageSpec` (see ``sim_bridge.damage``).
         gui: open the PyBullet GUI (needs a display) instead of headless DIRECT mode.
+        solver_iterations: constraint-solver iterations per step (an archive's setting:
+            see :func:`physics_settings`).
     """
 
     def __init__(self, dt: float = SIM_DEFAULTS['dt'],
                  gait_duration: float = SIM_DEFAULTS['gait_duration'],
-                 damage='intact', gui: bool = False):
-        self.settings = simulator_settings(dt, gait_duration)
+                 damage='intact', gui: bool = False,
+                 solver_iterations: int = SIM_DEFAULTS['solver_iterations']):
+        self.settings = simulator_settings(dt, gait_duration, solver_iterations)
         self.dt = self.settings['dt']
         self.gait_duration = self.settings['gait_duration']
         self.n_steps = int(round(self.gait_duration / self.dt))
@@ -308,7 +357,7 @@ class Hexapod:
         p.resetSimulation(physicsClientId=cid)
         p.setGravity(0, 0, -9.81, physicsClientId=cid)
         p.setPhysicsEngineParameter(fixedTimeStep=self.dt, numSubSteps=0,
-                                    numSolverIterations=SOLVER_ITERATIONS,
+                                    numSolverIterations=self.settings['solver_iterations'],
                                     deterministicOverlappingPairs=1, physicsClientId=cid)
         plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
         self._ground = p.createMultiBody(0, plane, physicsClientId=cid)
@@ -559,13 +608,14 @@ _CACHE: OrderedDict = OrderedDict()
 _CACHE_SIZE = 4
 
 
-def _cached_hexapod(damage, dt, gait_duration) -> Hexapod:
+def _cached_hexapod(damage, dt, gait_duration, solver_iterations) -> Hexapod:
     spec = parse_damage(damage)
-    settings = simulator_settings(dt, gait_duration)
-    key = (spec, settings['dt'], settings['gait_duration'])
+    settings = simulator_settings(dt, gait_duration, solver_iterations)
+    key = (spec, settings['dt'], settings['gait_duration'], settings['solver_iterations'])
     sim = _CACHE.get(key)
     if sim is None:
-        sim = Hexapod(dt=settings['dt'], gait_duration=settings['gait_duration'], damage=spec)
+        sim = Hexapod(dt=settings['dt'], gait_duration=settings['gait_duration'], damage=spec,
+                      solver_iterations=settings['solver_iterations'])
         _CACHE[key] = sim
         while len(_CACHE) > _CACHE_SIZE:
             _, old = _CACHE.popitem(last=False)
@@ -576,14 +626,15 @@ def _cached_hexapod(damage, dt, gait_duration) -> Hexapod:
 
 
 def evaluate_gait(params, damage='intact', dt: float = SIM_DEFAULTS['dt'],
-                  gait_duration: float = SIM_DEFAULTS['gait_duration']) -> GaitOutcome:
+                  gait_duration: float = SIM_DEFAULTS['gait_duration'],
+                  solver_iterations: int = SIM_DEFAULTS['solver_iterations']) -> GaitOutcome:
     """One gait from a fresh standing start at the origin (deterministic, picklable).
 
     Uses a per-process cache of simulators (one per damage/dt/duration, reset with
     ``restoreState``), so it is cheap to call many times in a worker process.
     ``sim_time`` of the outcome is the gait duration.
     """
-    sim = _cached_hexapod(damage, dt, gait_duration)
+    sim = _cached_hexapod(damage, dt, gait_duration, solver_iterations)
     sim.reset()
     sim._sim_time = 0.0
     return sim.execute(params)
