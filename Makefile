@@ -24,11 +24,12 @@ TEST_ARGS ?=
 
 venv: $(VENV)/.installed
 
-# Third-party dependencies: only when requirements.txt changes.
-$(VENV)/.deps: requirements.txt
+# Third-party dependencies: only when a requirements file changes. requirements-qd.txt
+# (pyribs, Dask) is for the offline map builder; the tests cover it, the nodes never import it.
+$(VENV)/.deps: requirements.txt requirements-qd.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip setuptools wheel
-	$(PY) -m pip install --quiet -r requirements.txt
+	$(PY) -m pip install --quiet -r requirements.txt -r requirements-qd.txt
 	@touch $@
 
 # The package itself: a real (non-editable) install, so that setup.py's data_files land in

@@ -41,6 +41,7 @@ setup(
     maintainer_email='sela_ros@example.org',
     description='Semi-Episodic Learning Algorithm (SELA) for hexapod damage recovery, on ROS 2',
     license='BSD-3-Clause',
-    extras_require={'test': ['pytest']},
+    # 'qd': the offline map builder's extras (sela-build-archive --descriptor 8d, Dask).
+    extras_require={'test': ['pytest'], 'qd': ['ribs==0.12.0', 'dask', 'distributed']},
     entry_points={'console_scripts': CONSOLE_SCRIPTS},
 )

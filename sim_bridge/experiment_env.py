@@ -28,7 +28,7 @@ from sela_ros.core import N_PARAMS
 from sela_ros.core.persistence import atomic_write
 from sim_bridge.damage import parse_damage
 from sim_bridge.environment import ObservedHexapod
-from sim_bridge.hexapod import Hexapod, evaluate_gait, simulator_settings
+from sim_bridge.hexapod import SIM_DEFAULTS, Hexapod, evaluate_gait, simulator_settings
 
 ORACLE_FORMAT_VERSION = 1
 
@@ -41,7 +41,7 @@ class HexapodEnvironment:
         damage: damage spec (``sim_bridge.damage`` grammar), applied from the start.
         noise_std: standard deviation (m) of the noise on each observed coordinate.
         seed: seed of the observation noise.
-        dt, gait_duration: simulator settings (must match the archive's).
+        dt, gait_duration, solver_iterations: simulator settings (must match the archive's).
 
     Attributes:
         falls: gaits after which the robot had fallen (and was righted) since ``reset``.
@@ -49,12 +49,13 @@ class HexapodEnvironment:
     """
 
     def __init__(self, params, damage='intact', noise_std=0.0, seed=0,
-                 dt=1.0 / 240.0, gait_duration=3.0):
+                 dt=1.0 / 240.0, gait_duration=3.0, solver_iterations=50):
         params = np.asarray(params, dtype=float)
         if params.ndim != 2 or params.shape[1] != N_PARAMS:
             raise ValueError(f'params must have shape (M, {N_PARAMS}), got {params.shape}')
         self.params = params
-        self.robot = Hexapod(dt=dt, gait_duration=gait_duration, damage=parse_damage(damage))
+        self.robot = Hexapod(dt=dt, gait_duration=gait_duration, damage=parse_damage(damage),
+                             solver_iterations=solver_iterations)
         self.observed = ObservedHexapod(self.robot, noise_std=noise_std, seed=seed)
         self.falls = 0
         self.sim_seconds = 0.0
@@ -110,33 +111,37 @@ def default_cache_dir() -> Path:
 
 
 def oracle_cache_path(params, damage, cache_dir=None, dt=1.0 / 240.0,
-                      gait_duration=3.0) -> Path:
-    settings = simulator_settings(dt, gait_duration)
-    key = '|'.join([archive_checksum(params), parse_damage(damage).canonical(),
-                    repr(settings['dt']), repr(settings['gait_duration']),
-                    settings['controller_version'], settings['model_version'],
-                    str(ORACLE_FORMAT_VERSION)])
+                      gait_duration=3.0, solver_iterations=50) -> Path:
+    settings = simulator_settings(dt, gait_duration, solver_iterations)
+    parts = [archive_checksum(params), parse_damage(damage).canonical(),
+             repr(settings['dt']), repr(settings['gait_duration']),
+             settings['controller_version'], settings['model_version'],
+             str(ORACLE_FORMAT_VERSION)]
+    if settings['solver_iterations'] != SIM_DEFAULTS['solver_iterations']:
+        parts.append(f"iterations={settings['solver_iterations']}")  # old caches stay valid
+    key = '|'.join(parts)
     digest = hashlib.sha256(key.encode()).hexdigest()[:24]
     return Path(cache_dir or default_cache_dir()) / f'oracle_{digest}.npz'
 
 
 def _evaluate_chunk(job):
-    chunk, damage, dt, gait_duration = job
+    chunk, damage, dt, gait_duration, solver_iterations = job
     out = np.empty((len(chunk), 4))
     for i, params in enumerate(chunk):
-        outcome = evaluate_gait(params, damage, dt, gait_duration)
+        outcome = evaluate_gait(params, damage, dt, gait_duration, solver_iterations)
         out[i, :3] = outcome.generic_reward
         out[i, 3] = float(outcome.fallen)
     return out
 
 
 def compute_oracle_table(params, damage, workers=1, dt=1.0 / 240.0, gait_duration=3.0,
+                         solver_iterations=50,
                          chunk_size=25):
     """``(generic_reward (M, 3), fallen (M,))`` of every gait on the damaged robot."""
     params = np.asarray(params, dtype=float)
     spec = parse_damage(damage).canonical()
     chunks = [params[i:i + chunk_size] for i in range(0, len(params), chunk_size)]
-    jobs = [(c, spec, dt, gait_duration) for c in chunks]
+    jobs = [(c, spec, dt, gait_duration, solver_iterations) for c in chunks]
     if workers <= 1 or len(chunks) <= 1:
         rows = [_evaluate_chunk(j) for j in jobs]
     else:
@@ -147,13 +152,13 @@ def compute_oracle_table(params, damage, workers=1, dt=1.0 / 240.0, gait_duratio
 
 
 def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
-                 gait_duration=3.0):
+                 gait_duration=3.0, solver_iterations=50):
     """:func:`compute_oracle_table`, cached on disk (atomic write; a bad file is redone).
 
     Returns:
         ``(generic_reward (M, 3), fallen (M,))``.
     """
-    path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration)
+    path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration, solver_iterations)
     n = len(params)
     if path.is_file():
         try:
@@ -163,7 +168,8 @@ def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
                 return gr.astype(float), fallen.astype(bool)
         except Exception:  # corrupt or truncated: recompute below
             pass
-    gr, fallen = compute_oracle_table(params, damage, workers, dt, gait_duration)
+    gr, fallen = compute_oracle_table(params, damage, workers, dt, gait_duration,
+                                      solver_iterations)
     atomic_write(path, lambda handle: np.savez(
         handle, generic_reward=gr, fallen=fallen,
         damage=np.array(parse_damage(damage).canonical())))

@@ -4,6 +4,9 @@ Publishes ``/clock`` (it owns sim time), ``/hexapod/odom`` (odom -> base_link),
 ``/hexapod/joint_states``; executes each command on ``/hexapod/behavior`` and answers with
 exactly one ``/hexapod/behavior_outcome`` carrying the command's id; serves
 ``/sim_bridge/reset``. ``damage`` can be changed at run time with ``ros2 param set``.
+The physics (``sim.dt``, ``sim.gait_duration``, ``sim.solver_iterations``) are those stamped
+in the ``archive`` parameter's file when it names one: a map's gaits only do in simulation
+what the map says with the settings it was built with.
 
 Gaits run on a worker thread that owns the simulator, so the node's single-threaded
 executor keeps answering services, parameters and subscriptions while the robot walks.
@@ -35,7 +38,7 @@ from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 from sim_bridge.damage import DamageSpecError, parse_damage
 from sim_bridge.environment import ObservedHexapod
-from sim_bridge.hexapod import Hexapod, hexapod_urdf
+from sim_bridge.hexapod import SIM_DEFAULTS, Hexapod, hexapod_urdf, read_archive_settings
 
 # As tf2_ros's TransformBroadcaster: reliable, volatile, a deep queue.
 TF_QOS = QoSProfile(depth=100)
@@ -62,6 +65,11 @@ PARAMETERS = (
          unit=' s', read_only=True),
     Spec('sim.gait_duration', 3.0, 'duration of one behaviour', low=0.1, high=60.0, unit=' s',
          read_only=True),
+    Spec('sim.solver_iterations', SIM_DEFAULTS['solver_iterations'], 'PyBullet constraint-'
+         'solver iterations per step; must match the archive', low=1, high=1000,
+         read_only=True),
+    Spec('archive', '', 'an archive file whose stamped physics (dt, gait duration, solver '
+         'iterations) replace the sim.* values; "" = use them', read_only=True),
     Spec('sim.gui', False, "PyBullet's window", read_only=True),
     Spec('publish_period', 0.5, 'sim time between state messages (/clock, odom, joint states, '
          '/tf) during a gait', low=0.001, high=60.0, unit=' s'),
@@ -80,9 +88,11 @@ PARAMETERS = (
 class SimBridge(Node):
     def __init__(self):
         super().__init__(ifc.SIM_BRIDGE)
+        self._take_archive_physics()
         values = declare(self, PARAMETERS, on_change=self.parameters_callback)
         damage = values['damage']
         robot = Hexapod(dt=values['sim.dt'], gait_duration=values['sim.gait_duration'],
+                        solver_iterations=values['sim.solver_iterations'],
                         damage=damage, gui=values['sim.gui'])
         self.env = ObservedHexapod(robot, values['observation.noise_std'], seed=values['seed'],
                                    right_on_fall=values['right_on_fall'])
@@ -123,6 +133,28 @@ class SimBridge(Node):
         self._publish_state(self.env.robot.sim_time)
         self.get_logger().info(f"hexapod ready, damage '{damage}', "
                                f'noise std {self.env.noise_std} m')
+
+    def _take_archive_physics(self):
+        """Start-up values of sim.* from the stamp of the archive given at start-up, if any.
+
+        They are read-only parameters, so they are set before they are declared, as start-up
+        overrides (the way ``params.declare`` coerces them), and report what really runs.
+        """
+        from rclpy.parameter import Parameter
+
+        overrides = getattr(self, '_parameter_overrides', None)
+        archive = overrides.get('archive') if isinstance(overrides, dict) else None
+        if archive is None or not isinstance(archive.value, str) or not archive.value:
+            return
+        try:
+            settings = read_archive_settings(archive.value)
+        except ValueError as exc:
+            self.get_logger().error(f'parameter archive: {exc}; using the sim.* parameters')
+            return
+        for name, key in (('sim.dt', 'dt'), ('sim.gait_duration', 'gait_duration'),
+                          ('sim.solver_iterations', 'solver_iterations')):
+            overrides[name] = Parameter(name, value=settings[key])
+        self.get_logger().info(f'physics of archive {archive.value}: {settings}')
 
     # --- callbacks (short: they only validate and enqueue) -------------------------------
 

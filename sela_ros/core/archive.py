@@ -7,7 +7,9 @@ plus a metadata dict that says how the map was built. SELA uses the generic rewa
 prior mean of its GPs and the normalised descriptors as their inputs.
 
 On disk an archive is one compressed ``.npz`` holding the four arrays and the metadata as a
-JSON string; it is written atomically (temporary file in the same directory, fsync,
+JSON string (a CVT archive, ``metadata['archive_kind'] == 'cvt'``, also holds its
+``centroids``, so that gaits can be filed into the same cells later); it is written
+atomically (temporary file in the same directory, fsync,
 ``os.replace``) so that a reader never sees half a file. :func:`load_archive` checks
 everything a consumer relies on and raises :class:`ArchiveError` with a message that says
 what is wrong, what was expected and how to fix it.
@@ -31,14 +33,19 @@ from sela_ros.core.persistence import atomic_write
 ARCHIVE_FORMAT_VERSION = 1
 
 #: Simulator settings an archive was built with; a consumer's settings must match them.
-SIMULATOR_SETTING_KEYS = ('dt', 'gait_duration', 'controller_version', 'model_version')
+SIMULATOR_SETTING_KEYS = ('dt', 'gait_duration', 'controller_version', 'model_version',
+                          'solver_iterations')
+
+#: Settings added after archives existed: an archive without the key was built with this.
+SETTING_DEFAULTS = {'solver_iterations': 50}
 
 #: Metadata keys every archive carries (see docs/archive.md).
-REQUIRED_METADATA_KEYS = SIMULATOR_SETTING_KEYS + (
+REQUIRED_METADATA_KEYS = tuple(k for k in SIMULATOR_SETTING_KEYS
+                               if k not in SETTING_DEFAULTS) + (
     'descriptor_name',
     'descriptor_bounds',
     'fitness_name',
-    'grid_shape',
+    'grid_shape',  # a CVT archive has 'cells' instead
     'n_evaluations',
     'seed',
     'created',
@@ -94,6 +101,8 @@ class Archive:
             start frame (metres, metres, radians).
         fitness: ``(M,)`` the quality MAP-Elites maximised (higher is better).
         metadata: how the map was built; keys in :data:`REQUIRED_METADATA_KEYS`.
+        centroids: ``(cells, d)`` centroids of a CVT archive (``archive_kind`` ``'cvt'``),
+            else ``None``.
 
     Raises:
         ArchiveError: on wrong shapes, non-finite values or missing metadata.
@@ -104,6 +113,7 @@ class Archive:
     generic_reward: np.ndarray
     fitness: np.ndarray
     metadata: dict = field(default_factory=dict)
+    centroids: np.ndarray | None = None
 
     def __post_init__(self):
         self.params = np.asarray(self.params, dtype=np.float64)
@@ -111,6 +121,8 @@ class Archive:
         self.generic_reward = np.asarray(self.generic_reward, dtype=np.float64)
         self.fitness = np.asarray(self.fitness, dtype=np.float64)
         self.metadata = dict(self.metadata)
+        if self.centroids is not None:
+            self.centroids = np.asarray(self.centroids, dtype=np.float64)
         _validate(self)
 
     def __len__(self) -> int:
@@ -123,8 +135,8 @@ class Archive:
 
     @property
     def simulator_settings(self) -> dict:
-        """The simulator settings (dt, gait_duration, controller_version, model_version)."""
-        return {key: self.metadata[key] for key in SIMULATOR_SETTING_KEYS}
+        """The simulator settings (:data:`SIMULATOR_SETTING_KEYS`), old defaults filled in."""
+        return {key: _setting(self.metadata, key) for key in SIMULATOR_SETTING_KEYS}
 
     def normalised_descriptors(self) -> np.ndarray:
         """Descriptors scaled to ``[0, 1]^d`` with the metadata bounds (clipped at the edges).
@@ -147,6 +159,8 @@ class Archive:
         """
         path = Path(path)
         arrays = {key: getattr(self, key) for key in _ARRAY_KEYS}
+        if self.centroids is not None:
+            arrays['centroids'] = self.centroids
         arrays['metadata'] = np.array(json.dumps(self.metadata, sort_keys=True))
         atomic_savez(path, **arrays)
         return path
@@ -180,10 +194,11 @@ def _validate(archive: Archive) -> None:
             raise ArchiveError(f'{name} holds {bad} NaN or infinite value(s); expected finite')
     if np.any(params < 0.0) or np.any(params > 1.0):
         raise ArchiveError('params must lie in [0, 1] (controller parameters)')
-    missing = [key for key in REQUIRED_METADATA_KEYS if key not in archive.metadata]
+    cvt = archive.metadata.get('archive_kind', 'grid') == 'cvt'
+    required = [k.replace('grid_shape', 'cells') if cvt else k for k in REQUIRED_METADATA_KEYS]
+    missing = [key for key in required if key not in archive.metadata]
     if missing:
-        raise ArchiveError(f'metadata lacks key(s) {missing}; expected all of '
-                           f'{list(REQUIRED_METADATA_KEYS)}')
+        raise ArchiveError(f'metadata lacks key(s) {missing}; expected all of {required}')
     try:
         bounds = np.asarray(archive.metadata['descriptor_bounds'], dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -195,6 +210,21 @@ def _validate(archive: Archive) -> None:
     if np.any(bounds[:, 1] <= bounds[:, 0]):
         raise ArchiveError(f'metadata descriptor_bounds must have low < high, got '
                            f'{bounds.tolist()}')
+    centroids = archive.centroids
+    if centroids is not None or cvt:
+        cells = archive.metadata.get('cells')
+        if not cvt or centroids is None:
+            raise ArchiveError("centroids go with metadata archive_kind 'cvt' (and back): got "
+                               f"archive_kind {archive.metadata.get('archive_kind')!r} and "
+                               f"{'no ' if centroids is None else ''}centroids")
+        if centroids.shape != (cells, d) or not np.all(np.isfinite(centroids)):
+            raise ArchiveError(f'centroids must be finite with shape (cells, d) = ({cells}, '
+                               f'{d}), got {centroids.shape}')
+
+
+def _setting(metadata: dict, key: str) -> Any:
+    """``metadata[key]``, or what an archive that predates the key was built with."""
+    return metadata[key] if key in metadata else SETTING_DEFAULTS[key]
 
 
 def _settings_equal(a: Any, b: Any) -> bool:
@@ -216,10 +246,10 @@ def check_settings(metadata: dict, expected_settings: dict, source: str = 'archi
     for key in SIMULATOR_SETTING_KEYS:
         if key not in expected_settings:
             continue
-        if key not in metadata:
+        if key not in metadata and key not in SETTING_DEFAULTS:
             mismatches.append(f'{key}: archive has none, expected {expected_settings[key]!r}')
-        elif not _settings_equal(metadata[key], expected_settings[key]):
-            mismatches.append(f'{key}: archive has {metadata[key]!r}, '
+        elif not _settings_equal(_setting(metadata, key), expected_settings[key]):
+            mismatches.append(f'{key}: archive has {_setting(metadata, key)!r}, '
                               f'expected {expected_settings[key]!r}')
     if mismatches:
         raise ArchiveError(f'{source} was built with other simulator settings ('
@@ -260,6 +290,8 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
                 raise ArchiveError(f'{path} lacks key(s) {missing}; an archive holds '
                                    f'{list(_ARRAY_KEYS) + ["metadata"]}. ' + _REBUILD_HINT)
             arrays = {key: npz[key] for key in _ARRAY_KEYS}
+            if 'centroids' in present:
+                arrays['centroids'] = npz['centroids']
             metadata_text = npz['metadata']
     except ArchiveError:
         raise

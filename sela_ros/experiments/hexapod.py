@@ -61,7 +61,8 @@ def _archive(text):
         raise argparse.ArgumentTypeError(f'{text}: generic rewards must be (dx, dy, dyaw)')
     settings = archive.simulator_settings
     try:
-        simulator_settings(settings['dt'], settings['gait_duration'])
+        simulator_settings(settings['dt'], settings['gait_duration'],
+                           settings['solver_iterations'])
     except ValueError as err:
         raise argparse.ArgumentTypeError(f'{text}: {err}') from None
     return str(text)
@@ -205,7 +206,8 @@ def run_method(job):
     start = time.perf_counter()
     with HexapodEnvironment(archive.params, damage, noise_std=noise_std,
                             seed=np.random.default_rng(env_seed),
-                            dt=settings['dt'], gait_duration=settings['gait_duration']) as sim:
+                            dt=settings['dt'], gait_duration=settings['gait_duration'],
+                            solver_iterations=settings['solver_iterations']) as sim:
         env = CourseEnvironment(sim, grid) if grid is not None else sim
         problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
                                ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
@@ -237,7 +239,8 @@ def run(args, progress=None) -> dict:
         start = time.perf_counter()
         gr, fallen = oracle_table(archive.params, args.damage, workers=args.workers,
                                   cache_dir=args.oracle_cache, dt=settings['dt'],
-                                  gait_duration=settings['gait_duration'])
+                                  gait_duration=settings['gait_duration'],
+                                  solver_iterations=settings['solver_iterations'])
         oracle_seconds = time.perf_counter() - start
         oracle_gr = np.where(fallen[:, None], FALLEN_GR, gr)
         oracle_falls = int(fallen.sum())

@@ -29,8 +29,9 @@ PARAMETERS = (
     Spec('resume', True, 'read the state file at start-up (lifelong learning)', read_only=True),
     Spec('reset_on_fall', True, 'after a step that ends fallen, call sim_bridge/reset',
          read_only=True),
-    Spec('simulator_node', ifc.SIM_BRIDGE, "whose sim.dt and sim.gait_duration the archive "
-         "must match ('' on a real robot: no check)", read_only=True),
+    Spec('simulator_node', ifc.SIM_BRIDGE, "whose sim.dt, sim.gait_duration and "
+         "sim.solver_iterations the archive must match ('' on a real robot: no check)",
+         read_only=True),
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
              'fall.risk.threshold')

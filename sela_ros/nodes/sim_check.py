@@ -1,15 +1,15 @@
 """Is the archive built for the simulator that runs? Asked once per archive, never waited on.
 
-The archive's generic rewards only mean something on a simulator with the same ``sim.dt``
-and ``sim.gait_duration``; this helper asks the simulator node for them (its parameter
-service) and says whether the stepper must hold its gaits, and why.
+The archive's generic rewards only mean something on a simulator with the same ``sim.dt``,
+``sim.gait_duration`` and ``sim.solver_iterations``; this helper asks the simulator node for
+them (its parameter service) and says whether the stepper must hold its gaits, and why.
 """
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import GetParameters
 
-from sela_ros.core.archive import ArchiveError, check_settings
+from sela_ros.core.archive import SETTING_DEFAULTS, ArchiveError, check_settings
 
-SETTINGS = ('sim.dt', 'sim.gait_duration')
+SETTINGS = ('sim.dt', 'sim.gait_duration', 'sim.solver_iterations')
 
 
 class SimulatorCheck:
@@ -42,16 +42,22 @@ class SimulatorCheck:
         if archive is not self.archive:
             return  # the archive changed meanwhile: it gets its own check
         values = answer.values if answer is not None else []
-        if len(values) != 2 or any(v.type != ParameterType.PARAMETER_DOUBLE for v in values):
+        if len(values) != 3 or any(v.type != ParameterType.PARAMETER_DOUBLE
+                                   for v in values[:2]):
             self.asked = False  # not a simulator we know how to ask: try again later
             self.on_hold(None)
             return
         settings = {'dt': values[0].double_value, 'gait_duration': values[1].double_value}
+        # A simulator without the parameter predates it: it runs the old default.
+        settings['solver_iterations'] = (
+            values[2].integer_value if values[2].type == ParameterType.PARAMETER_INTEGER
+            else SETTING_DEFAULTS['solver_iterations'])
         try:
             check_settings(archive.metadata, settings, source=self.source)
         except ArchiveError as exc:
             self.on_hold(f'{exc} The simulator runs sim.dt {settings["dt"]:g} s, '
-                         f'sim.gait_duration {settings["gait_duration"]:g} s: no gait is '
+                         f'sim.gait_duration {settings["gait_duration"]:g} s, '
+                         f'sim.solver_iterations {settings["solver_iterations"]}: no gait is '
                          'sent until the archive parameter names a matching archive.')
             return
         self.on_hold(None)

@@ -44,6 +44,10 @@ from sela_ros.core.geometry import wrap_angle
 CHECKPOINT_FORMAT_VERSION = 1
 VARIATIONS = ('iso_line', 'polynomial')
 
+#: Behaviour descriptors: the final (x, y) in the start frame (2-D), and the paper's 8-D
+#: one that adds the six duty factors (legs in ``sim_bridge.damage.LEG_NAMES`` order).
+DESCRIPTORS = {'final_xy': 2, 'final_xy_duty_factors': 8}
+
 
 class EvaluationResult(NamedTuple):
     """What one evaluation tells MAP-Elites.
@@ -336,14 +340,20 @@ class SyntheticEvaluator:
     """A cheap, deterministic stand-in for the hexapod (tests, benchmarks, dry runs).
 
     Maps 36 parameters to a smooth, non-linear ``(dx, dy, dyaw)`` that covers roughly
-    ``[-1, 1]^2 x [-1.5, 1.5]``; parameters 0 and 1 both above 0.95 count as a fall.
+    ``[-1, 1]^2 x [-1.5, 1.5]``; parameters 0 and 1 both above 0.95 count as a fall. The
+    8-D descriptor adds six "duty factors" in ``[0, 1]`` (the amplitudes' mean per leg).
 
     Args:
         delay: seconds to sleep per evaluation, to emulate a simulator's cost.
+        descriptor: a key of :data:`DESCRIPTORS`.
     """
 
-    def __init__(self, delay: float = 0.0):
+    def __init__(self, delay: float = 0.0, descriptor: str = 'final_xy'):
+        if descriptor not in DESCRIPTORS:
+            raise ValueError(f'descriptor must be one of {sorted(DESCRIPTORS)}, got '
+                             f'{descriptor!r}')
         self.delay = float(delay)
+        self.descriptor = descriptor
         weights = np.random.default_rng(20180219).normal(size=(3, 36))
         self.weights = weights
 
@@ -356,7 +366,11 @@ class SyntheticEvaluator:
                        np.tanh(z[1]) + 0.1 * np.cos(9.0 * p[7]),
                        1.5 * np.tanh(z[2])])
         fallen = params[0] > 0.95 and params[1] > 0.95
-        return EvaluationResult(not fallen, float(arc_fitness(gr)), gr[:2].copy(), gr)
+        desc = gr[:2].copy()
+        if self.descriptor == 'final_xy_duty_factors':
+            duty = (np.asarray(params, dtype=np.float64).reshape(6, 6)[:, ::3]).mean(axis=1)
+            desc = np.concatenate([desc, duty])
+        return EvaluationResult(not fallen, float(arc_fitness(gr)), desc, gr)
 
     def settings(self, dt: float = 1.0 / 240.0, gait_duration: float = 3.0) -> dict:
         """Settings recorded in an archive built with this function."""
@@ -365,7 +379,7 @@ class SyntheticEvaluator:
 
 
 class HexapodEvaluator:
-    """One gait on the simulated hexapod: descriptor final ``(x, y)``, fitness arc.
+    """One gait on the simulated hexapod: descriptor final ``(x, y)`` (+ duty factors), arc.
 
     Picklable: each worker process imports PyBullet and builds its own simulator.
 
@@ -373,31 +387,42 @@ class HexapodEvaluator:
         dt: physics time step (s); fix it before building an archive.
         gait_duration: how long one gait runs (s).
         damage: damage spec understood by ``sim_bridge`` (``'intact'`` for an archive).
+        solver_iterations: PyBullet constraint-solver iterations per step.
+        descriptor: a key of :data:`DESCRIPTORS`.
     """
 
     def __init__(self, dt: float = 1.0 / 240.0, gait_duration: float = 3.0,
-                 damage: str = 'intact'):
+                 damage: str = 'intact', solver_iterations: int = 50,
+                 descriptor: str = 'final_xy'):
         if dt <= 0 or gait_duration <= 0:
             raise ValueError(f'dt and gait_duration must be > 0, got {dt}, {gait_duration}')
+        if descriptor not in DESCRIPTORS:
+            raise ValueError(f'descriptor must be one of {sorted(DESCRIPTORS)}, got '
+                             f'{descriptor!r}')
         self.dt = float(dt)
         self.gait_duration = float(gait_duration)
         self.damage = damage
+        self.solver_iterations = int(solver_iterations)
+        self.descriptor = descriptor
 
     def __call__(self, params) -> EvaluationResult:
         from sim_bridge.hexapod import evaluate_gait
 
         outcome = evaluate_gait(np.asarray(params, dtype=np.float64), damage=self.damage,
-                                dt=self.dt, gait_duration=self.gait_duration)
+                                dt=self.dt, gait_duration=self.gait_duration,
+                                solver_iterations=self.solver_iterations)
         gr = np.asarray(outcome.generic_reward, dtype=np.float64)
         valid = not bool(outcome.fallen) and bool(np.all(np.isfinite(gr)))
-        return EvaluationResult(valid, float(arc_fitness(gr)) if valid else -np.inf,
-                                gr[:2].copy(), gr)
+        desc = gr[:2].copy()
+        if self.descriptor == 'final_xy_duty_factors':
+            desc = np.concatenate([desc, np.asarray(outcome.duty_factors, dtype=np.float64)])
+        return EvaluationResult(valid, float(arc_fitness(gr)) if valid else -np.inf, desc, gr)
 
     def settings(self) -> dict:
         """The simulator settings an archive built with this evaluator must record."""
         from sim_bridge.hexapod import simulator_settings
 
-        return dict(simulator_settings(self.dt, self.gait_duration))
+        return dict(simulator_settings(self.dt, self.gait_duration, self.solver_iterations))
 
 
 def _evaluate_chunk(evaluate: Callable, chunk: np.ndarray) -> list[EvaluationResult]:
@@ -602,19 +627,26 @@ class MapElites:
         try:
             while self.n_evaluations < n_evaluations:
                 start = time.perf_counter()
-                n = min(self.emitter.batch_size, n_evaluations - self.n_evaluations)
-                self.step(n)
+                before = self.n_evaluations
+                self.step(self._next_batch_size(n_evaluations - self.n_evaluations))
                 self.elapsed += time.perf_counter() - start
                 if bar is not None:
-                    bar.set_postfix(cells=self.archive.num_elites,
-                                    coverage=f'{self.archive.coverage:.1%}', refresh=False)
-                    bar.update(n)
+                    bar.set_postfix(**self.progress_info(), refresh=False)
+                    bar.update(self.n_evaluations - before)
             if self.checkpoint_path is not None and self.n_batches % self.checkpoint_every:
                 self.save_checkpoint()
         finally:
             if bar is not None:
                 bar.close()
         return self.archive
+
+    def _next_batch_size(self, remaining: int) -> int:
+        """Solutions to ask for next; the last batch is shortened to end on the budget."""
+        return min(self.emitter.batch_size, remaining)
+
+    def progress_info(self) -> dict[str, Any]:
+        """Figures shown beside the progress bar."""
+        return {'cells': self.archive.num_elites, 'coverage': f'{self.archive.coverage:.1%}'}
 
     # checkpoints -----------------------------------------------------------------------
     @property
@@ -637,12 +669,22 @@ class MapElites:
         path = Path(path) if path is not None else self.checkpoint_path
         if path is None:
             raise ValueError('no checkpoint path: pass one or set checkpoint_path')
-        arrays = dict(self.archive.state_dict())
-        arrays['state'] = np.array(json.dumps(self.state()))
-        atomic_savez(path, **arrays)
+        self._write_checkpoint(path)
         if self.checkpoint_path is not None and path == self.checkpoint_path:
             self._prune_journal()
         return path
+
+    def _write_checkpoint(self, path: Path) -> None:
+        arrays = dict(self.archive.state_dict())
+        arrays['state'] = np.array(json.dumps(self.state()))
+        atomic_savez(path, **arrays)
+
+    def _rng_snapshot(self) -> Any:
+        """Whatever :meth:`ask` changes, so that an ask can be undone."""
+        return self.emitter.rng.bit_generator.state, self.emitter.n_asked
+
+    def _rng_restore(self, snapshot: Any) -> None:
+        self.emitter.rng.bit_generator.state, self.emitter.n_asked = snapshot
 
     def _journal(self, solutions: np.ndarray, results: Sequence[EvaluationResult]) -> None:
         n = len(results)
@@ -674,13 +716,12 @@ class MapElites:
                 break
             with np.load(entry, allow_pickle=False) as npz:
                 data = {k: npz[k] for k in npz.files}
-            rng_state = self.emitter.rng.bit_generator.state
-            n_asked = self.emitter.n_asked
+            snapshot = self._rng_snapshot()
             solutions = self.ask(len(data['solutions']))
             if not np.array_equal(solutions, data['solutions']):
                 # Not this run's batch (e.g. settings changed): undo the ask, stop replaying.
-                self.emitter.rng.bit_generator.state = rng_state
-                self.emitter.n_asked = n_asked
+                self._rng_restore(snapshot)
+                self._pending = None
                 break
             results = [EvaluationResult(bool(v), float(f), d, g) for v, f, d, g in
                        zip(data['valid'], data['fitness'], data['descriptor'],

@@ -5,9 +5,17 @@ Example (the shipped archive, see docs/archive.md)::
     sela-build-archive --evaluations 30000 --batch-size 200 --workers 2 --seed 1 \\
         --out sela_ros/data/hexapod_archive.npz --figure docs/figures/archive.png
 
+The paper's 8-D map (final x, y + six duty factors, a CVT archive built with pyribs from
+``requirements-qd.txt``, physics ``sim_bridge.hexapod.FAST_SETTINGS``)::
+
+    sela-build-archive --descriptor 8d --cells 10000 --evaluations 100000 --workers 1 \
+        --checkpoint /work/mapbuild/map8d.checkpoint.pkl --out /work/mapbuild/map8d.npz
+
 Before it starts, it times a few gaits here and prints how long the run will take. It
 checkpoints every ``--checkpoint-every`` batches (journalling the batches in between); after
-a crash or a kill, run the same command with ``--resume``.
+a crash or a kill, run the same command with ``--resume`` (the checkpoint, with its
+``.journal`` folder beside it, may be carried to another machine and resumed there, also
+with ``--dask-scheduler``).
 """
 from __future__ import annotations
 
@@ -38,6 +46,8 @@ DEFAULT_GRID = (64, 64)
 DEFAULT_BOUNDS = (-0.6, 0.6, -0.6, 0.6)
 DESCRIPTOR_NAME = 'final_xy'
 FITNESS_NAME = 'arc_yaw_error'
+#: --descriptor choices: the 2-D grid map and the paper's 8-D CVT map.
+DESCRIPTOR_NAMES = {'2d': 'final_xy', '8d': 'final_xy_duty_factors'}
 
 # Thresholds of the gait families that docs/archive.md and the summary count.
 FORWARD_DX, SIDEWAYS_DY, TURNING_DYAW = 0.1, 0.1, 0.5
@@ -79,6 +89,14 @@ def make_parser() -> argparse.ArgumentParser:
                              'are journalled, so none is lost)')
     parser.add_argument('--resume', action='store_true',
                         help='continue from the checkpoint (same RNG stream)')
+    parser.add_argument('--descriptor', choices=sorted(DESCRIPTOR_NAMES), default='2d',
+                        help='2d: final (x, y) on a grid; 8d: final (x, y) + six duty factors '
+                             'on a CVT archive (pyribs, the paper\'s map; default 2d)')
+    parser.add_argument('--cells', type=_positive_int, default=10000,
+                        help='CVT cells of the 8d map (default 10000)')
+    parser.add_argument('--emitters', type=_positive_int, default=1,
+                        help='iso-line emitters of the 8d map; a batch is emitters x '
+                             'batch-size gaits (default 1)')
     parser.add_argument('--dask-scheduler', default=None, metavar='ADDR',
                         help='evaluate on a Dask distributed scheduler, e.g. '
                              'tcp://127.0.0.1:8786, instead of local processes')
@@ -90,8 +108,11 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument('--initial', type=_positive_int, default=None,
                         help='random gaits before variation starts (default 5 batches)')
     parser.add_argument('--variation', choices=('iso_line', 'polynomial'), default='iso_line')
-    parser.add_argument('--dt', type=_positive_float, default=1.0 / 240.0,
-                        help='physics time step in s (default 1/240)')
+    parser.add_argument('--dt', type=_positive_float, default=None,
+                        help='physics time step in s (default 1/240 for 2d, 1/120 for 8d)')
+    parser.add_argument('--solver-iterations', type=_positive_int, default=None,
+                        help='PyBullet solver iterations per step (default 50 for 2d, 30 for '
+                             '8d: see benchmarks/bench_physics.py)')
     parser.add_argument('--gait-duration', type=_positive_float, default=3.0,
                         help='duration of one gait in s (default 3)')
     parser.add_argument('--synthetic', action='store_true',
@@ -118,7 +139,19 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
 def _checkpoint_path(args: argparse.Namespace) -> Path:
     if args.checkpoint is not None:
         return args.checkpoint
-    return args.out.with_name(args.out.stem + '.checkpoint.npz')
+    suffix = '.checkpoint.pkl' if args.descriptor == '8d' else '.checkpoint.npz'
+    return args.out.with_name(args.out.stem + suffix)
+
+
+def _physics(args: argparse.Namespace) -> tuple[float, int]:
+    """dt and solver iterations: the options, else the defaults of the descriptor's map."""
+    from sim_bridge.hexapod import FAST_SETTINGS, SIM_DEFAULTS
+
+    defaults = FAST_SETTINGS if args.descriptor == '8d' else SIM_DEFAULTS
+    dt = args.dt if args.dt is not None else defaults['dt']
+    iterations = (args.solver_iterations if args.solver_iterations is not None
+                  else defaults['solver_iterations'])
+    return dt, iterations
 
 
 def _format_duration(seconds: float) -> str:
@@ -186,6 +219,21 @@ def archive_figure(archive: Archive, path: str | os.PathLike) -> Path:
     return path
 
 
+def _new_cvt_run(args, evaluate, executor, checkpoint: Path):
+    """A fresh 8-D run: centroids by k-means (minutes for 10,000 cells, once; they are in
+    the checkpoint from then on), a CVT archive and iso-line emitters."""
+    from sela_ros.qd.cvt import XY_DUTY_BOUNDS, CVTMapElites, make_centroids
+
+    start = time.perf_counter()
+    centroids = make_centroids(args.cells, XY_DUTY_BOUNDS, seed=args.seed)
+    print(f'{args.cells} CVT centroids in {time.perf_counter() - start:.0f} s', flush=True)
+    return CVTMapElites(centroids, XY_DUTY_BOUNDS, evaluate, executor,
+                        batch_size=args.batch_size, emitters=args.emitters,
+                        n_initial=args.initial or 5 * args.batch_size,
+                        seed=args.seed, checkpoint_path=checkpoint,
+                        checkpoint_every=args.checkpoint_every)
+
+
 def _exit_on_sigterm(signum, frame):
     # Unwind through `finally` so the worker pool is shut down, not orphaned.
     sys.exit(128 + signum)
@@ -198,12 +246,15 @@ def main(argv: list[str] | None = None) -> int:
     _check_args(parser, args)
     checkpoint = _checkpoint_path(args)
 
+    descriptor = DESCRIPTOR_NAMES[args.descriptor]
+    dt, iterations = _physics(args)
     if args.synthetic:
-        evaluate = SyntheticEvaluator(delay=args.synthetic_delay)
-        settings = evaluate.settings(args.dt, args.gait_duration)
+        evaluate = SyntheticEvaluator(delay=args.synthetic_delay, descriptor=descriptor)
+        settings = evaluate.settings(dt, args.gait_duration)
     else:
-        evaluate = HexapodEvaluator(dt=args.dt, gait_duration=args.gait_duration)
         try:
+            evaluate = HexapodEvaluator(dt=dt, gait_duration=args.gait_duration,
+                                        solver_iterations=iterations, descriptor=descriptor)
             settings = evaluate.settings()
         except ValueError as exc:
             parser.error(str(exc))
@@ -220,13 +271,25 @@ def main(argv: list[str] | None = None) -> int:
         if not args.dask_scheduler:  # more processes than cores do not go faster
             parallel = min(parallel, os.cpu_count() or 1)
         if args.resume and checkpoint.exists():
-            run = MapElites.resume(checkpoint, evaluate, executor, args.checkpoint_every)
+            if args.descriptor == '8d':
+                from sela_ros.qd.cvt import CVTMapElites
+
+                resume = CVTMapElites.resume
+            else:
+                resume = MapElites.resume
+            try:
+                run = resume(checkpoint, evaluate, executor, args.checkpoint_every)
+            except ValueError as exc:
+                parser.error(f'--resume: {exc}')
             stored = run.info.get('settings')
             if stored is not None and stored != settings:
                 parser.error(f'--resume: checkpoint {checkpoint} was made with simulator '
                              f'settings {stored}, this run uses {settings}; start afresh')
             print(f'resuming from {checkpoint}: {run.n_evaluations} evaluations done, '
-                  f'{run.archive.num_elites} cells filled', flush=True)
+                  f'{run.progress_info()}', flush=True)
+        elif args.descriptor == '8d':
+            run = _new_cvt_run(args, evaluate, executor, checkpoint)
+            run.info = {'settings': settings, 'seed': args.seed}
         else:
             run = default_run(evaluate, dims=args.grid,
                               bounds=np.reshape(args.bounds, (2, 2)),
@@ -247,9 +310,10 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         executor.close()
 
-    archive = run.to_archive(**settings, descriptor_name=DESCRIPTOR_NAME,
+    batch_size = run.config['batch_size'] if args.descriptor == '8d' else run.emitter.batch_size
+    archive = run.to_archive(**settings, descriptor_name=descriptor,
                              fitness_name=FITNESS_NAME, seed=run.info.get('seed', args.seed),
-                             damage='intact', batch_size=run.emitter.batch_size,
+                             damage='intact', batch_size=batch_size,
                              evaluator='synthetic' if args.synthetic else 'hexapod')
     archive.save(args.out)
     size = args.out.stat().st_size
@@ -257,10 +321,12 @@ def main(argv: list[str] | None = None) -> int:
     summary = {'evaluations': run.n_evaluations, 'this_session_evaluations': remaining,
                'this_session_wall_s': round(wall, 1), 'batch_time_s': round(run.elapsed, 1),
                'evals_per_s': round(run.n_evaluations / run.elapsed, 2) if run.elapsed else None,
-               'filled_cells': len(archive), 'cells': int(np.prod(run.archive.dims)),
+               'filled_cells': len(archive),
+               'cells': archive.metadata.get('cells') or int(np.prod(archive.metadata.get(
+                   'grid_shape', [0]))),
                'fallen': run.n_invalid, **gait_family_counts(archive),
                'file_bytes': size, 'out': str(args.out)}
-    if args.figure is not None:
+    if args.figure is not None and args.descriptor == '2d':
         summary['figure'] = str(archive_figure(archive, args.figure))
     print(json.dumps(summary), flush=True)
     return 0

@@ -93,6 +93,8 @@ def main(argv=None):
             if name == 'sim_bridge':
                 cmd += ['-p', f'damage:={damage}', '-p', f'seed:={args.seed}',
                         '-p', f'sim.gui:={str(args.gui).lower()}']
+                if args.archive:  # the simulator runs with the map's physics
+                    cmd += ['-p', f'archive:={args.archive}']
             if name == 'planner' and map_path:
                 cmd += ['-p', f'map.file:={Path(map_path).resolve()}']
             if name == 'sela_adapter':
