@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Build the paper's 8-D map (final x, y + six duty factors, CVT) in the background-safe way:
+# the same command starts the build and, when its checkpoint exists, resumes it (after a
+# kill, a reboot, or on another machine where the checkpoint and its .journal folder were
+# copied to $MAPBUILD_DIR). Progress goes to $MAPBUILD_DIR/build.log.
+#
+#   scripts/build_map8d.sh                       # 1 local worker, /work/mapbuild
+#   WORKERS=16 MAPBUILD_DIR=~/mapbuild scripts/build_map8d.sh
+#   DASK=tcp://scheduler:8786 scripts/build_map8d.sh
+#   nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 &   # what survives a logout
+#
+# The run's settings (cells, seed, batch size, physics) live in the checkpoint once it
+# exists: changing CELLS or SEED then has no effect; EVALUATIONS may grow.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MAPBUILD_DIR=${MAPBUILD_DIR:-/work/mapbuild}
+EVALUATIONS=${EVALUATIONS:-100000}
+CELLS=${CELLS:-20000}
+SEED=${SEED:-1}
+WORKERS=${WORKERS:-1}
+PY=${PY:-.venv/bin/python}
+mkdir -p "$MAPBUILD_DIR"
+checkpoint="$MAPBUILD_DIR/map8d.checkpoint.pkl"
+args=(--descriptor 8d --cells "$CELLS" --evaluations "$EVALUATIONS" --batch-size 200
+      --seed "$SEED" --workers "$WORKERS" --checkpoint-every 5 --checkpoint "$checkpoint"
+      --out "$MAPBUILD_DIR/map8d.npz")
+[[ -n "${DASK:-}" ]] && args+=(--dask-scheduler "$DASK")
+[[ -f "$checkpoint" ]] && args+=(--resume)
+echo "$(date -u +%FT%TZ) build_map8d: $PY -m sela_ros.tools.build_archive ${args[*]}" \
+    >> "$MAPBUILD_DIR/build.log"
+export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
+exec "$PY" -m sela_ros.tools.build_archive "${args[@]}" >> "$MAPBUILD_DIR/build.log" 2>&1
