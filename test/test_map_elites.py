@@ -128,7 +128,7 @@ def test_process_pool_matches_serial():
 
 @pytest.mark.slow
 def test_dask_local_cluster_matches_serial():
-    import distributed  # a declared dependency (requirements.txt): its absence is a failure
+    import distributed  # a declared dependency (requirements-qd.txt): its absence is a failure
     serial = _run(SerialEvaluator())
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   host='127.0.0.1', dashboard_address=None) as cluster, \

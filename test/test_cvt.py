@@ -1,0 +1,188 @@
+"""The 8-D CVT map (pyribs): build, checkpoint/journal resume, carried checkpoints, archives."""
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sela_ros.core.archive import Archive, ArchiveError, load_archive
+from sela_ros.qd.map_elites import EvaluationResult, SerialEvaluator, SyntheticEvaluator
+
+pytest.importorskip('ribs', reason='the map builder extras: pip install -r requirements-qd.txt')
+
+from sela_ros.qd.cvt import XY_DUTY_BOUNDS, CVTMapElites, disc_samples, make_centroids  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+EIGHT_D = SyntheticEvaluator(descriptor='final_xy_duty_factors')
+# The synthetic (x, y) spans [-1, 1]^2: bounds that cover it.
+BOUNDS = ((-1.0, 1.0), (-1.0, 1.0)) + ((0.0, 1.0),) * 6
+
+
+def _centroids(cells=64, seed=3):
+    return disc_samples(BOUNDS, cells, np.random.default_rng(seed))
+
+
+def _run(n=600, executor=None, **kwargs):
+    run = CVTMapElites(_centroids(), BOUNDS, EIGHT_D, executor or SerialEvaluator(),
+                       batch_size=50, n_initial=100, seed=11, **kwargs)
+    run.run(n, progress=False)
+    return run
+
+
+def _elites(run):
+    data = run.scheduler.archive.data()
+    order = np.argsort(data['index'])
+    return {k: np.asarray(v)[order] for k, v in data.items()}
+
+
+def _assert_same(a, b):
+    assert a.n_evaluations == b.n_evaluations and a.n_batches == b.n_batches
+    ea, eb = _elites(a), _elites(b)
+    assert ea.keys() == eb.keys()
+    for key in ea:
+        np.testing.assert_array_equal(ea[key], eb[key], err_msg=key)
+    # the same random streams from here on: the next batches are the same
+    np.testing.assert_array_equal(a.ask(), b.ask())
+
+
+def test_cvt_build_fills_cells_with_8d_elites():
+    run = _run(n=1000)
+    archive = run.to_archive(dt=1 / 120, gait_duration=3.0, controller_version='synthetic',
+                             model_version='synthetic', solver_iterations=30,
+                             descriptor_name='final_xy_duty_factors', fitness_name='arc')
+    assert run.n_evaluations == 1000
+    assert 20 <= len(archive) <= 64
+    assert archive.descriptors.shape == (len(archive), 8)
+    assert archive.centroids.shape == (64, 8)
+    assert archive.metadata['archive_kind'] == 'cvt' and archive.metadata['cells'] == 64
+    # each elite lies in the Voronoi cell of its own centroid: none nearer than it
+    d = np.linalg.norm(archive.descriptors[:, None] - archive.centroids[None], axis=2)
+    assert len(np.unique(d.argmin(axis=1))) == len(archive)
+    # the falls (synthetic: params 0 and 1 above 0.95) never enter the archive
+    assert not np.any((archive.params[:, 0] > 0.95) & (archive.params[:, 1] > 0.95))
+
+
+def test_falls_are_told_but_kept_out():
+    run = CVTMapElites(_centroids(8), BOUNDS, EIGHT_D, batch_size=2, n_initial=2, seed=0)
+    sols = run.ask()
+    run.tell(sols, [EvaluationResult(False, -np.inf, np.full(8, np.nan), np.zeros(3)),
+                    EvaluationResult(True, -0.1, np.full(8, 0.5), np.ones(3))])
+    assert run.n_invalid == 1 and run.scheduler.archive.stats.num_elites == 1
+    with pytest.raises(ValueError, match='ask'):
+        run.tell(sols, [EvaluationResult(True, -0.1, np.full(8, 0.5), np.ones(3))] * 2)
+
+
+def test_resume_after_a_kill_matches_uninterrupted(tmp_path):
+    full = _run(n=900)
+    ckpt = tmp_path / 'ck.pkl'
+    killed = CVTMapElites(_centroids(), BOUNDS, EIGHT_D, batch_size=50, n_initial=100, seed=11,
+                          checkpoint_path=ckpt, checkpoint_every=4)
+    for _ in range(7):  # checkpoint after batch 4; batches 5-7 only journalled; then "killed"
+        killed.step()
+    assert len(list(killed.journal_dir.glob('batch_*.npz'))) == 3
+    resumed = CVTMapElites.resume(ckpt, EIGHT_D, SerialEvaluator(), checkpoint_every=4)
+    assert resumed.n_batches == 7 and resumed.n_evaluations == killed.n_evaluations
+    resumed.run(900, progress=False)
+    _assert_same(full, resumed)
+
+
+def test_checkpoint_carried_to_another_path_resumes(tmp_path):
+    full = _run(n=900)
+    here = tmp_path / 'here' / 'ck.pkl'
+    part = _run(n=500, checkpoint_path=here, checkpoint_every=3)
+    # what a user copies to another machine: the checkpoint and the journal beside it
+    there = tmp_path / 'elsewhere' / 'map.pkl'
+    there.parent.mkdir()
+    shutil.copy(here, there)
+    if part.journal_dir.is_dir():
+        shutil.copytree(part.journal_dir, Path(str(there) + '.journal'))
+    shutil.rmtree(here.parent)
+    resumed = CVTMapElites.resume(there, EIGHT_D, SerialEvaluator(), checkpoint_every=3)
+    assert resumed.n_evaluations == part.n_evaluations
+    resumed.run(900, progress=False)
+    _assert_same(full, resumed)
+    assert there.is_file()  # checkpoints keep going to the carried path
+
+
+def test_resume_rejects_garbage_and_grid_checkpoints(tmp_path):
+    garbage = tmp_path / 'ck.pkl'
+    garbage.write_bytes(b'garbage')
+    with pytest.raises(ValueError, match='cannot resume'):
+        CVTMapElites.resume(garbage, EIGHT_D)
+
+
+def test_archive_round_trips_with_centroids(tmp_path):
+    run = _run(n=400)
+    archive = run.to_archive(dt=1 / 120, gait_duration=3.0, controller_version='synthetic',
+                             model_version='synthetic', solver_iterations=30,
+                             descriptor_name='final_xy_duty_factors', fitness_name='arc')
+    path = archive.save(tmp_path / 'map8d.npz')
+    loaded = load_archive(path, expected_settings={'dt': 1 / 120, 'solver_iterations': 30})
+    for key in ('params', 'descriptors', 'generic_reward', 'fitness', 'centroids'):
+        np.testing.assert_array_equal(getattr(loaded, key), getattr(archive, key), err_msg=key)
+    assert np.asarray(loaded.descriptor_bounds).shape == (8, 2)
+    assert loaded.normalised_descriptors().shape == (len(loaded), 8)
+    assert loaded.simulator_settings['solver_iterations'] == 30
+    with pytest.raises(ArchiveError, match='solver_iterations'):
+        load_archive(path, expected_settings={'solver_iterations': 50})
+    # a CVT archive without its centroids, or centroids of the wrong width, are refused
+    with pytest.raises(ArchiveError, match='centroids'):
+        Archive(archive.params, archive.descriptors, archive.generic_reward, archive.fitness,
+                archive.metadata)
+    with pytest.raises(ArchiveError, match='centroids'):
+        Archive(archive.params, archive.descriptors, archive.generic_reward, archive.fitness,
+                archive.metadata, centroids=archive.centroids[:, :2])
+
+
+def test_make_centroids_cover_the_disc_and_duty_factors():
+    centroids = make_centroids(50, XY_DUTY_BOUNDS, seed=0, samples=3000)
+    assert centroids.shape == (50, 8)
+    radius = np.hypot(centroids[:, 0], centroids[:, 1])
+    assert radius.max() <= 0.45 + 1e-9  # k-means over the disc: no centroid in a corner
+    assert np.all((centroids[:, 2:] >= 0) & (centroids[:, 2:] <= 1))
+    np.testing.assert_array_equal(centroids, make_centroids(50, XY_DUTY_BOUNDS, seed=0,
+                                                            samples=3000))
+
+
+def _cli(out, ckpt, *extra):
+    return [sys.executable, '-m', 'sela_ros.tools.build_archive', '--synthetic',
+            '--synthetic-delay', '0.004', '--descriptor', '8d', '--cells', '40',
+            '--evaluations', '1500', '--batch-size', '50', '--workers', '1', '--seed', '5',
+            '--checkpoint-every', '3', '--checkpoint', str(ckpt), '--out', str(out),
+            '--no-progress', *extra]
+
+
+@pytest.mark.slow
+def test_cli_sigkill_then_resume_matches_uninterrupted(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    reference = tmp_path / 'ref.npz'
+    subprocess.run(_cli(reference, tmp_path / 'ref_ck.pkl'), check=True, cwd=REPO, env=env,
+                   timeout=240, capture_output=True)
+    out, ckpt = tmp_path / 'killed.npz', tmp_path / 'killed_ck.pkl'
+    proc = subprocess.Popen(_cli(out, ckpt), cwd=REPO, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    journal = Path(str(ckpt) + '.journal')
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline:
+        if ckpt.exists() and journal.is_dir() and any(journal.glob('batch_*.npz')):
+            break
+        assert proc.poll() is None, 'the run ended before it could be killed'
+        time.sleep(0.01)
+    else:
+        proc.kill()
+        pytest.fail('no checkpoint within 180 s')
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=10)
+    assert proc.returncode == -signal.SIGKILL and not out.exists()
+    subprocess.run(_cli(out, ckpt, '--resume'), check=True, cwd=REPO, env=env, timeout=240,
+                   capture_output=True)
+    a, b = load_archive(reference), load_archive(out)
+    assert a.metadata['n_evaluations'] == b.metadata['n_evaluations'] == 1500
+    assert a.metadata['archive_kind'] == 'cvt' and a.metadata['cells'] == 40
+    for key in ('params', 'descriptors', 'generic_reward', 'fitness', 'centroids'):
+        np.testing.assert_array_equal(getattr(a, key), getattr(b, key), err_msg=key)
