@@ -186,3 +186,20 @@ def test_cli_sigkill_then_resume_matches_uninterrupted(tmp_path):
     assert a.metadata['archive_kind'] == 'cvt' and a.metadata['cells'] == 40
     for key in ('params', 'descriptors', 'generic_reward', 'fitness', 'centroids'):
         np.testing.assert_array_equal(getattr(a, key), getattr(b, key), err_msg=key)
+
+
+def test_cli_export_reads_a_checkpoint_without_touching_it(tmp_path):
+    from sela_ros.tools.build_archive import main
+
+    out, ckpt = tmp_path / 'a.npz', tmp_path / 'a_ck.pkl'
+    common = ['--synthetic', '--descriptor', '8d', '--cells', '30', '--batch-size', '50',
+              '--workers', '1', '--checkpoint', str(ckpt), '--checkpoint-every', '4',
+              '--no-progress']
+    assert main([*common, '--evaluations', '350', '--out', str(out)]) == 0
+    before = ckpt.read_bytes()
+    exported = tmp_path / 'exported.npz'
+    assert main([*common, '--evaluations', '1', '--out', str(exported), '--export']) == 0
+    assert ckpt.read_bytes() == before  # nothing written beside a running build
+    a, b = load_archive(out), load_archive(exported)
+    assert b.metadata['n_evaluations'] == 350
+    np.testing.assert_array_equal(a.params, b.params)

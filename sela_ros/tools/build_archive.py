@@ -89,6 +89,10 @@ def make_parser() -> argparse.ArgumentParser:
                              'are journalled, so none is lost)')
     parser.add_argument('--resume', action='store_true',
                         help='continue from the checkpoint (same RNG stream)')
+    parser.add_argument('--export', action='store_true',
+                        help='only write OUT from the checkpoint and its journal as they are: '
+                             'no evaluation, no checkpoint written, so it is safe beside the '
+                             'build that is still running')
     parser.add_argument('--descriptor', choices=sorted(DESCRIPTOR_NAMES), default='2d',
                         help='2d: final (x, y) on a grid; 8d: final (x, y) + six duty factors '
                              'on a CVT archive (pyribs, the paper\'s map; default 2d)')
@@ -130,8 +134,10 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
                      f'{args.bounds}')
     if args.synthetic_delay < 0:
         parser.error('--synthetic-delay must be >= 0')
-    if args.resume and not _checkpoint_path(args).exists():
-        parser.error(f'--resume: no checkpoint at {_checkpoint_path(args)}')
+    if (args.resume or args.export) and not _checkpoint_path(args).exists():
+        option = '--export' if args.export else '--resume'
+        parser.error(f'{option}: no checkpoint at {_checkpoint_path(args)}')
+    args.resume = args.resume or args.export
     if args.out.suffix != '.npz':
         parser.error(f'--out must end in .npz, got {args.out}')
 
@@ -259,8 +265,10 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as exc:
             parser.error(str(exc))
 
-    seconds = time_per_evaluation(evaluate)
-    if args.dask_scheduler:
+    seconds = 0.0 if args.export else time_per_evaluation(evaluate)
+    if args.export:
+        executor = SerialEvaluator()
+    elif args.dask_scheduler:
         executor = DaskEvaluator(args.dask_scheduler)
     elif args.workers == 1:
         executor = SerialEvaluator()
@@ -299,13 +307,15 @@ def main(argv: list[str] | None = None) -> int:
                               checkpoint_every=args.checkpoint_every,
                               variation=args.variation)
             run.info = {'settings': settings, 'seed': args.seed}
-        remaining = max(0, args.evaluations - run.n_evaluations)
-        print(f'{seconds:.3f} s per evaluation on one core here; {remaining} evaluations on '
-              f'{parallel} worker(s) will take about '
-              f'{_format_duration(remaining * seconds / parallel)}', flush=True)
-
+        remaining = 0 if args.export else max(0, args.evaluations - run.n_evaluations)
         start = time.perf_counter()
-        run.run(args.evaluations, progress=not args.no_progress)
+        if args.export:
+            run.checkpoint_path = None  # read only: the build may still be writing it
+        else:
+            print(f'{seconds:.3f} s per evaluation on one core here; {remaining} evaluations '
+                  f'on {parallel} worker(s) will take about '
+                  f'{_format_duration(remaining * seconds / parallel)}', flush=True)
+            run.run(args.evaluations, progress=not args.no_progress)
         wall = time.perf_counter() - start
     finally:
         executor.close()
