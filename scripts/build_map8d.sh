@@ -29,4 +29,6 @@ args=(--descriptor 8d --cells "$CELLS" --evaluations "$EVALUATIONS" --batch-size
 echo "$(date -u +%FT%TZ) build_map8d: $PY -m sela_ros.tools.build_archive ${args[*]}" \
     >> "$MAPBUILD_DIR/build.log"
 export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
-exec "$PY" -m sela_ros.tools.build_archive "${args[@]}" >> "$MAPBUILD_DIR/build.log" 2>&1
+# One build per checkpoint: a second one would interleave batches in the same journal.
+exec flock --nonblock --conflict-exit-code 3 "$MAPBUILD_DIR/build.lock" \
+    "$PY" -m sela_ros.tools.build_archive "${args[@]}" >> "$MAPBUILD_DIR/build.log" 2>&1
