@@ -8,8 +8,11 @@ Example (the shipped archive, see docs/archive.md)::
 The paper's 8-D map (final x, y + six duty factors, a CVT archive built with pyribs from
 ``requirements-qd.txt``, physics ``sim_bridge.hexapod.FAST_SETTINGS``)::
 
-    sela-build-archive --descriptor 8d --cells 10000 --evaluations 100000 --workers 1 \
+    sela-build-archive --descriptor 8d --cells 20000 --evaluations 100000 --workers 1 \\
         --checkpoint /work/mapbuild/map8d.checkpoint.pkl --out /work/mapbuild/map8d.npz
+
+(``scripts/build_map8d.sh``; 20,000 cells because part of the 8-D box holds (x, y, duty)
+combinations no gait reaches, and the map should hold 10,000 elites or more.)
 
 Before it starts, it times a few gaits here and prints how long the run will take. It
 checkpoints every ``--checkpoint-every`` batches (journalling the batches in between); after
