@@ -203,3 +203,16 @@ def test_cli_export_reads_a_checkpoint_without_touching_it(tmp_path):
     a, b = load_archive(out), load_archive(exported)
     assert b.metadata['n_evaluations'] == 350
     np.testing.assert_array_equal(a.params, b.params)
+
+
+def test_the_nodes_never_import_the_map_builder_extras():
+    # pyribs and Dask are offline extras (requirements-qd.txt): a robot needs neither.
+    code = ('import sys\n'
+            'import sim_bridge.node, sela_ros.nodes.adapter_node, sela_ros.nodes.planner_node\n'
+            'import sela_ros.nodes.damage_detector_node\n'
+            'bad = sorted(m for m in sys.modules if m.split(".")[0] in '
+            '("ribs", "dask", "distributed", "sklearn", "numba"))\n'
+            'assert not bad, bad\n')
+    proc = subprocess.run([sys.executable, '-c', code], cwd=REPO, capture_output=True,
+                          text=True, timeout=120, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 0, proc.stderr[-2000:]
