@@ -1,4 +1,4 @@
-"""Time one SELA step (GP update + UCB over the archive) and the toy experiment.
+"""Time one SELA step (GP update + fall model + UCB over the archive) and the toy experiment.
 
 Run: ``.venv/bin/python benchmarks/bench_sela_step.py [--toy-replicates N]``.
 Prints figures only; tests never assert on timings.
@@ -33,15 +33,17 @@ def bench_step(num_candidates, observations=20, dim=8, repeats=15, seed=0):
     prior = 0.1 * rng.normal(size=(num_candidates, 2))
     sela = SELA(candidates, prior, PointMotion(), goal=[2.0, 2.0])
     pose = np.zeros(2)
-    for _ in range(observations):
+    for k in range(observations):
         d = sela.ask(pose)
         sela.tell(d.index, prior[d.index] + 0.01 * rng.normal(size=2))
+        sela.tell_fall(d.index, k % 4 == 0)  # some falls: the fall-aware path is timed
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         d = sela.ask(pose)
         after = pose + prior[d.index] * 0.9
         sela.tell(d.index, observed_generic_reward(pose, after, sela.motion))
+        sela.tell_fall(d.index, False)
         times.append(time.perf_counter() - t0)
     return float(np.median(times)), float(np.min(times)), sela.gp.num_samples
 
@@ -51,8 +53,8 @@ def main():
     parser.add_argument('--toy-replicates', type=int, default=10)
     parser.add_argument('--max-candidates', type=float, default=1e6)
     args = parser.parse_args()
-    print('SELA step (ask + tell, 8-D descriptors, 2 GR dims):')
-    for m in (1e3, 1e4, 1e5, 1e6):
+    print('SELA step (ask + tell + fall model, 8-D descriptors, 2 GR dims):')
+    for m in (1e3, 1e4, 2e4, 1e5, 1e6):
         if m > args.max_candidates:
             break
         reps = 15 if m <= 1e5 else 5
