@@ -19,6 +19,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'
 
 from sim_bridge import hexapod as hx  # noqa: E402
 from sim_bridge.controller import tripod_gait  # noqa: E402
+from sim_bridge.evaluation import evaluate_gait  # noqa: E402
 
 
 def _best(fn, repeats):
@@ -31,7 +32,7 @@ def _best(fn, repeats):
 
 
 def _warm_worker():
-    hx.evaluate_gait(tripod_gait())
+    evaluate_gait(tripod_gait())
 
 
 def main(argv=None) -> int:
@@ -79,16 +80,16 @@ def main(argv=None) -> int:
 
     rng = np.random.default_rng(0)
     params = [rng.random(36) for _ in range(args.gaits)]
-    hx.evaluate_gait(params[0])
+    evaluate_gait(params[0])
     start = time.perf_counter()
-    serial = [hx.evaluate_gait(x) for x in params]
+    serial = [evaluate_gait(x) for x in params]
     t_serial = time.perf_counter() - start
     with ProcessPoolExecutor(args.workers) as pool:
         # Warm every worker (import + build + settle) so that only evaluation is timed.
         for f in [pool.submit(_warm_worker) for _ in range(args.workers * 2)]:
             f.result()
         start = time.perf_counter()
-        pooled = list(pool.map(hx.evaluate_gait, params, chunksize=1))
+        pooled = list(pool.map(evaluate_gait, params, chunksize=1))
         t_pool = time.perf_counter() - start
     identical = all(np.array_equal(a.end_pose, b.end_pose) for a, b in zip(serial, pooled))
     print(f'{args.gaits} random gaits: 1 process {t_serial:.2f} s, {args.workers}-process pool '

@@ -14,13 +14,9 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
 
-from sela_ros.qd.map_elites import (  # noqa: E402
-    HexapodEvaluator,
-    ProcessPoolEvaluator,
-    SerialEvaluator,
-    SyntheticEvaluator,
-    default_run,
-)
+from sela_ros.qd.evaluators import HexapodEvaluator, SyntheticEvaluator  # noqa: E402
+from sela_ros.qd.executors import ProcessPoolEvaluator, SerialEvaluator  # noqa: E402
+from sela_ros.qd.map_elites import default_run  # noqa: E402
 
 
 def bench_overhead(n=20000, batch=200):

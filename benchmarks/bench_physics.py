@@ -24,8 +24,9 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
 
 from sim_bridge import hexapod as hx  # noqa: E402
+from sim_bridge.settings import FAST_SETTINGS, SIM_DEFAULTS  # noqa: E402
 
-BASELINE = {'dt': hx.SIM_DEFAULTS['dt'], 'solver_iterations': hx.SIM_DEFAULTS['solver_iterations']}
+BASELINE = {'dt': SIM_DEFAULTS['dt'], 'solver_iterations': SIM_DEFAULTS['solver_iterations']}
 REFERENCE = {'dt': 1.0 / 1000.0, 'solver_iterations': 100}
 CANDIDATES = (
     {'dt': 1.0 / 240.0, 'solver_iterations': 20},
@@ -113,8 +114,8 @@ def main(argv=None) -> int:
         for name, (rate, rows) in results.items():
             print(_row(name, rate, rate / base_rate, fidelity(rows[:n_ref], reference)))
     print(f'\nfalls under the defaults: {int(base[:, 9].sum())} of {len(gaits)}')
-    chosen = {'dt': hx.FAST_SETTINGS['dt'],
-              'solver_iterations': hx.FAST_SETTINGS['solver_iterations']}
+    chosen = {'dt': FAST_SETTINGS['dt'],
+              'solver_iterations': FAST_SETTINGS['solver_iterations']}
     rate = results[label(chosen)][0] if label(chosen) in results else evaluate(gaits, chosen)[0]
     print(f'before: {base_rate:.2f} evaluations/s per core ({label(BASELINE)}); after: '
           f'{rate:.2f} evaluations/s per core ({label(chosen)}, the 8-D map\'s settings): '

@@ -28,7 +28,9 @@ from sela_ros.core import N_PARAMS
 from sela_ros.core.persistence import atomic_write
 from sim_bridge.damage import parse_damage
 from sim_bridge.environment import ObservedHexapod
-from sim_bridge.hexapod import SIM_DEFAULTS, Hexapod, evaluate_gait, simulator_settings
+from sim_bridge.evaluation import evaluate_gait
+from sim_bridge.hexapod import Hexapod
+from sim_bridge.settings import SIM_DEFAULTS, simulator_settings
 
 ORACLE_FORMAT_VERSION = 1
 

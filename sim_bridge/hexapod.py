@@ -12,258 +12,30 @@ from a standing start begins with ``restoreState`` of the same settled state.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import tempfile
-from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-
-def _import_pybullet_quietly():
-    """Import pybullet without its C-level "pybullet build time: ..." banner.
-
-    A node's output is the user's terminal (and the demo's): the banner is noise. It is
-    written at import time (on stderr with this build); file descriptors 1 and 2 point at
-    /dev/null during the import, and libc's buffers are flushed before they are put back,
-    so it cannot come out later either. A failed import still raises, after the restore.
-    """
-    import ctypes
-    import sys
-
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = {fd: os.dup(fd) for fd in (1, 2)}
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        for fd in saved:
-            os.dup2(devnull, fd)
-        import pybullet
-        ctypes.CDLL(None).fflush(None)
-    finally:
-        for fd, copy in saved.items():
-            os.dup2(copy, fd)
-            os.close(copy)
-        os.close(devnull)
-    return pybullet
-
-
-p = _import_pybullet_quietly()
-
-from sela_ros.core.geometry import generic_reward, quaternion_to_yaw  # noqa: E402
-from sim_bridge import controller  # noqa: E402 - after the quiet import, on purpose
-from sim_bridge.damage import (  # noqa: E402
-    JOINT_LIMITS,
-    JOINT_NAMES,
-    LEG_NAMES,
-    DamageSpec,
-    parse_damage,
+from sela_ros.core.geometry import generic_reward, quaternion_to_yaw
+from sim_bridge import controller
+from sim_bridge.damage import LEG_NAMES, DamageSpec, parse_damage
+from sim_bridge.model import (
+    ALL_JOINT_NAMES,
+    FALL_HEIGHT,
+    FALL_TILT,
+    FOOT_FRICTION,
+    GROUND_FRICTION,
+    MAX_FORCE,
+    SETTLE_TIME,
+    STANDING_HEIGHT,
+    hexapod_urdf,
+    p,
 )
-
-MODEL_VERSION = 'sela-hexapod-v1'
-CONTROLLER_VERSION = controller.CONTROLLER_VERSION
-
-# What an archive that predates a key was built with: a missing key means this value.
-SIM_DEFAULTS = {
-    'dt': 1.0 / 240.0,
-    'gait_duration': 3.0,
-    'controller_version': CONTROLLER_VERSION,
-    'model_version': MODEL_VERSION,
-    'solver_iterations': 50,
-}
-
-#: Physics of the 8-D map, chosen with benchmarks/bench_physics.py: over twice the
-#: evaluations/s of the defaults, gaits ending a few cm from where the defaults put them.
-FAST_SETTINGS = {'dt': 1.0 / 120.0, 'solver_iterations': 30}
-
-# The intact model as a file, for robot_state_publisher / RViz; regenerate with
-# ``python -c "from sim_bridge.hexapod import write_urdf; write_urdf()"`` when the model changes.
-URDF_PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'urdf', 'hexapod.urdf')
-
-ALL_JOINT_NAMES = tuple(f'{leg}.{joint}' for leg in LEG_NAMES for joint in JOINT_NAMES)
-
-# Geometry and masses (resibots pexod reference: body 1.03 kg, total 2.5 kg).
-BODY_SIZE = (0.24, 0.20, 0.04)
-BODY_MASS = 1.03
-COXA_LENGTH, FEMUR_LENGTH, TIBIA_LENGTH, FOOT_LENGTH = 0.06, 0.085, 0.14, 0.025
-SEGMENT_RADIUS = 0.01
-# Most leg mass sits in the servos near the hip (yaw + pitch) and at the knee.
-COXA_MASS, FEMUR_MASS, TIBIA_MASS, FOOT_MASS = 0.12, 0.08, 0.03, 0.015
-# Hip mounts (x, |y|) and mount angle away from the lateral direction (rad, + = forward)
-# for front, middle, rear legs. Splaying front and rear legs by 45 deg lengthens the support
-# polygon, as on pexod; without it the robot tips backwards when it accelerates.
-HIP_MOUNTS = ((0.11, 0.09, math.pi / 4), (0.0, 0.10, 0.0), (-0.11, 0.09, -math.pi / 4))
-STANDING_HEIGHT = TIBIA_LENGTH + FOOT_LENGTH
-
-# Physics settings, fixed so that archives stay comparable (the solver's iterations and dt
-# are settings stamped in archives instead: see simulator_settings).
-MAX_FORCE = 2.5  # N m, about a Dynamixel MX-28 stall torque
-FOOT_FRICTION = 1.0
-GROUND_FRICTION = 1.0
-SETTLE_TIME = 0.5
-FALL_TILT = math.radians(60.0)
-FALL_HEIGHT = 0.03
-
-
-def simulator_settings(dt: float = SIM_DEFAULTS['dt'],
-                       gait_duration: float = SIM_DEFAULTS['gait_duration'],
-                       solver_iterations: int = SIM_DEFAULTS['solver_iterations']) -> dict:
-    """Settings that make gait outcomes comparable; stamp archives with them.
-
-    A longer dt and fewer solver iterations make evaluations cheaper but move where gaits
-    end by centimetres, so an archive is only valid in a simulator with its own settings.
-    """
-    dt = float(dt)
-    gait_duration = float(gait_duration)
-    if not (math.isfinite(dt) and 0.0 < dt <= 0.01):
-        raise ValueError(f'dt must be in (0, 0.01] s, got {dt}')
-    if not (math.isfinite(gait_duration) and gait_duration > 0.0):
-        raise ValueError(f'gait_duration must be > 0 s, got {gait_duration}')
-    if isinstance(solver_iterations, bool) or not float(solver_iterations).is_integer() \
-            or not 1 <= solver_iterations <= 1000:
-        raise ValueError(f'solver_iterations must be an integer in [1, 1000], got '
-                         f'{solver_iterations!r}')
-    return {'dt': dt, 'gait_duration': gait_duration,
-            'controller_version': CONTROLLER_VERSION, 'model_version': MODEL_VERSION,
-            'solver_iterations': int(solver_iterations)}
-
-
-def physics_settings(metadata: dict) -> dict:
-    """Keyword arguments of :class:`Hexapod` for an archive's metadata (or settings dict).
-
-    A key the archive predates takes the value it was built with (:data:`SIM_DEFAULTS`),
-    so the shipped 2-D archive keeps running with 50 solver iterations.
-    """
-    return {key: metadata.get(key, SIM_DEFAULTS[key])
-            for key in ('dt', 'gait_duration', 'solver_iterations')}
-
-
-def read_archive_settings(path: str | os.PathLike) -> dict:
-    """:func:`physics_settings` of the archive file at ``path`` (from its JSON metadata).
-
-    sim_bridge reads the stamp itself rather than through sela_ros, which sits above it.
-
-    Raises:
-        ValueError: no such file, or no readable metadata in it.
-    """
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            metadata = json.loads(str(npz['metadata']))
-    except Exception as exc:
-        raise ValueError(f'cannot read the simulator settings of archive {path}: '
-                         f'{type(exc).__name__}: {exc}') from None
-    if not isinstance(metadata, dict):
-        raise ValueError(f'archive {path}: metadata is not a JSON object')
-    return physics_settings(metadata)
-
-
-# --------------------------------------------------------------------------- URDF
-
-
-def _cylinder_inertia(mass, radius, length):
-    axial = 0.5 * mass * radius**2
-    transverse = mass * (3 * radius**2 + length**2) / 12.0
-    return axial, transverse
-
-
-def _link(name, mass, inertia, visual_collision, origin='0 0 0', rpy='0 0 0'):
-    ixx, iyy, izz = inertia
-    return (f'  <link name="{name}">\n'
-            f'    <inertial><origin xyz="{origin}" rpy="0 0 0"/><mass value="{mass!r}"/>'
-            f'<inertia ixx="{ixx!r}" ixy="0" ixz="0" iyy="{iyy!r}" iyz="0" izz="{izz!r}"/>'
-            f'</inertial>\n'
-            f'    <visual><origin xyz="{origin}" rpy="{rpy}"/>'
-            f'<geometry>{visual_collision}</geometry></visual>\n'
-            f'    <collision><origin xyz="{origin}" rpy="{rpy}"/>'
-            f'<geometry>{visual_collision}</geometry></collision>\n'
-            f'  </link>\n')
-
-
-def _joint(name, parent, child, xyz, axis, limit, rpy='0 0 0', fixed_angle=None):
-    if fixed_angle is not None:
-        # A blocked joint is welded at its angle: exact, and nothing to servo.
-        ax = [float(v) for v in axis.split()]
-        base = p.getQuaternionFromEuler([float(v) for v in rpy.split()])
-        lock = p.getQuaternionFromAxisAngle(ax, fixed_angle)
-        _, orn = p.multiplyTransforms([0, 0, 0], base, [0, 0, 0], lock)
-        rpy = ' '.join(repr(float(v)) for v in p.getEulerFromQuaternion(orn))
-        return (f'  <joint name="{name}" type="fixed"><parent link="{parent}"/>'
-                f'<child link="{child}"/><origin xyz="{xyz}" rpy="{rpy}"/></joint>\n')
-    return (f'  <joint name="{name}" type="revolute"><parent link="{parent}"/>'
-            f'<child link="{child}"/><origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{axis}"/>'
-            f'<limit lower="{-limit!r}" upper="{limit!r}" effort="{MAX_FORCE!r}" '
-            f'velocity="100.0"/></joint>\n')
-
-
-def hexapod_urdf(damage='intact') -> str:
-    """URDF text of the hexapod with ``damage`` applied (removed legs are absent).
-
-    Links: ``base_link``, ``<leg>.coxa``, ``<leg>.femur``, ``<leg>.tibia``, ``<leg>.foot``.
-    Each hip_yaw joint frame is turned so that its +x points away from the body along the
-    leg, so the same axes serve both sides.
-    """
-    spec = parse_damage(damage)
-    lx, ly, lz = BODY_SIZE
-    body_inertia = (BODY_MASS * (ly**2 + lz**2) / 12, BODY_MASS * (lx**2 + lz**2) / 12,
-                    BODY_MASS * (lx**2 + ly**2) / 12)
-    parts = ['<?xml version="1.0"?>\n',
-             f'<!-- generated by sim_bridge.hexapod ({MODEL_VERSION}), '
-             f'damage: {spec.canonical()} -->\n',
-             '<robot name="sela_hexapod">\n',
-             _link('base_link', BODY_MASS, body_inertia, f'<box size="{lx} {ly} {lz}"/>')]
-    r = SEGMENT_RADIUS
-    for index, leg in enumerate(LEG_NAMES):
-        if leg in spec.removed:
-            continue
-        left = index < 3
-        hip_x, hip_y, splay = HIP_MOUNTS[index % 3]
-        mount_yaw = math.pi / 2 - splay if left else -math.pi / 2 + splay
-        yaw_axis = '0 0 -1' if left else '0 0 1'
-        factor = spec.shorten_factor(leg)
-        tibia = TIBIA_LENGTH * factor
-        foot = FOOT_LENGTH * factor
-        hip_xyz = f'{hip_x!r} {(hip_y if left else -hip_y)!r} 0'
-        a, t = _cylinder_inertia(COXA_MASS, r, COXA_LENGTH)
-        parts.append(_link(f'{leg}.coxa', COXA_MASS, (a, t, t),
-                           f'<cylinder radius="{r}" length="{COXA_LENGTH}"/>',
-                           origin=f'{COXA_LENGTH / 2!r} 0 0', rpy=f'0 {math.pi / 2!r} 0'))
-        a, t = _cylinder_inertia(FEMUR_MASS, r, FEMUR_LENGTH)
-        parts.append(_link(f'{leg}.femur', FEMUR_MASS, (a, t, t),
-                           f'<cylinder radius="{r}" length="{FEMUR_LENGTH}"/>',
-                           origin=f'{FEMUR_LENGTH / 2!r} 0 0', rpy=f'0 {math.pi / 2!r} 0'))
-        a, t = _cylinder_inertia(TIBIA_MASS, r, tibia)
-        parts.append(_link(f'{leg}.tibia', TIBIA_MASS, (t, t, a),
-                           f'<cylinder radius="{r}" length="{tibia!r}"/>',
-                           origin=f'0 0 {-tibia / 2!r}'))
-        foot_radius = foot / 2
-        i_foot = 0.4 * FOOT_MASS * foot_radius**2
-        parts.append(_link(f'{leg}.foot', FOOT_MASS, (i_foot, i_foot, i_foot),
-                           f'<sphere radius="{foot_radius!r}"/>'))
-        parts.append(_joint(f'{leg}.hip_yaw', 'base_link', f'{leg}.coxa', hip_xyz,
-                            yaw_axis, JOINT_LIMITS['hip_yaw'], rpy=f'0 0 {mount_yaw!r}',
-                            fixed_angle=spec.blocked_angle(leg, 'hip_yaw')))
-        parts.append(_joint(f'{leg}.hip_pitch', f'{leg}.coxa', f'{leg}.femur',
-                            f'{COXA_LENGTH!r} 0 0', '0 -1 0', JOINT_LIMITS['hip_pitch'],
-                            fixed_angle=spec.blocked_angle(leg, 'hip_pitch')))
-        parts.append(_joint(f'{leg}.knee', f'{leg}.femur', f'{leg}.tibia',
-                            f'{FEMUR_LENGTH!r} 0 0', '0 -1 0', JOINT_LIMITS['knee'],
-                            fixed_angle=spec.blocked_angle(leg, 'knee')))
-        parts.append(f'  <joint name="{leg}.foot_joint" type="fixed"><parent link="{leg}.tibia"/>'
-                     f'<child link="{leg}.foot"/><origin xyz="0 0 {-(tibia + foot_radius)!r}"/>'
-                     f'</joint>\n')
-    parts.append('</robot>\n')
-    return ''.join(parts)
-
-
-def write_urdf(path: str = URDF_PATH, damage='intact') -> str:
-    """Write :func:`hexapod_urdf` to ``path``; return the path."""
-    with open(path, 'w', encoding='utf-8') as handle:
-        handle.write(hexapod_urdf(damage))
-    return path
-
+from sim_bridge.settings import SIM_DEFAULTS, simulator_settings
 
 # --------------------------------------------------------------------------- outcomes
 
@@ -600,41 +372,3 @@ class Hexapod:
             fallen=self.is_fallen(),
             sim_time=self._sim_time,
         )
-
-
-# --------------------------------------------------------------------------- evaluate_gait
-
-_CACHE: OrderedDict = OrderedDict()
-_CACHE_SIZE = 4
-
-
-def _cached_hexapod(damage, dt, gait_duration, solver_iterations) -> Hexapod:
-    spec = parse_damage(damage)
-    settings = simulator_settings(dt, gait_duration, solver_iterations)
-    key = (spec, settings['dt'], settings['gait_duration'], settings['solver_iterations'])
-    sim = _CACHE.get(key)
-    if sim is None:
-        sim = Hexapod(dt=settings['dt'], gait_duration=settings['gait_duration'], damage=spec,
-                      solver_iterations=settings['solver_iterations'])
-        _CACHE[key] = sim
-        while len(_CACHE) > _CACHE_SIZE:
-            _, old = _CACHE.popitem(last=False)
-            old.close()
-    else:
-        _CACHE.move_to_end(key)
-    return sim
-
-
-def evaluate_gait(params, damage='intact', dt: float = SIM_DEFAULTS['dt'],
-                  gait_duration: float = SIM_DEFAULTS['gait_duration'],
-                  solver_iterations: int = SIM_DEFAULTS['solver_iterations']) -> GaitOutcome:
-    """One gait from a fresh standing start at the origin (deterministic, picklable).
-
-    Uses a per-process cache of simulators (one per damage/dt/duration, reset with
-    ``restoreState``), so it is cheap to call many times in a worker process.
-    ``sim_time`` of the outcome is the gait duration.
-    """
-    sim = _cached_hexapod(damage, dt, gait_duration, solver_iterations)
-    sim.reset()
-    sim._sim_time = 0.0
-    return sim.execute(params)

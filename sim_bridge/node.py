@@ -38,7 +38,9 @@ from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 from sim_bridge.damage import DamageSpecError, parse_damage
 from sim_bridge.environment import ObservedHexapod
-from sim_bridge.hexapod import SIM_DEFAULTS, Hexapod, hexapod_urdf, read_archive_settings
+from sim_bridge.hexapod import Hexapod
+from sim_bridge.model import hexapod_urdf
+from sim_bridge.settings import SIM_DEFAULTS, read_archive_settings
 
 # As tf2_ros's TransformBroadcaster: reliable, volatile, a deep queue.
 TF_QOS = QoSProfile(depth=100)

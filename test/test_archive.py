@@ -208,7 +208,7 @@ def test_shipped_archive_is_valid():
     assert np.any(dx > 0.1) and np.any(dx < -0.1)
     assert np.any(np.abs(dy) > 0.1) and np.any(np.abs(dyaw) > 0.5)
     try:
-        from sim_bridge.hexapod import simulator_settings
+        from sim_bridge.settings import simulator_settings
     except ImportError:  # the archive's own checks above still ran
         return
     load_archive(path, expected_settings=simulator_settings(archive.metadata['dt'],

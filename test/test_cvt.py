@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from sela_ros.core.archive import Archive, ArchiveError, load_archive
-from sela_ros.qd.map_elites import EvaluationResult, SerialEvaluator, SyntheticEvaluator
+from sela_ros.qd.evaluators import EvaluationResult, SyntheticEvaluator
+from sela_ros.qd.executors import SerialEvaluator
 
 pytest.importorskip('ribs', reason='the map builder extras: pip install -r requirements-qd.txt')
 

@@ -11,6 +11,15 @@ from sela_ros.core.geometry import wrap_angle
 from sim_bridge import hexapod as hx
 from sim_bridge.controller import tripod_gait
 from sim_bridge.damage import LEG_NAMES, DamageSpecError
+from sim_bridge.evaluation import evaluate_gait
+from sim_bridge.model import ALL_JOINT_NAMES, URDF_PATH, hexapod_urdf
+from sim_bridge.settings import (
+    MODEL_VERSION,
+    SIM_DEFAULTS,
+    physics_settings,
+    read_archive_settings,
+    simulator_settings,
+)
 
 STRAIGHT = tripod_gait(0.5, 0.5)
 
@@ -24,7 +33,7 @@ def sim():
 
 @pytest.fixture(scope='module')
 def intact_outcome():
-    return hx.evaluate_gait(STRAIGHT)
+    return evaluate_gait(STRAIGHT)
 
 
 def _same(a: hx.GaitOutcome, b: hx.GaitOutcome):
@@ -37,7 +46,7 @@ def test_model_mass_names_and_standing(sim):
     sim.set_damage('intact')
     sim.reset()
     assert math.isclose(sim.total_mass(), 2.5, abs_tol=1e-9)
-    assert sim.joint_names == list(hx.ALL_JOINT_NAMES)
+    assert sim.joint_names == list(ALL_JOINT_NAMES)
     assert sim.joint_names[:3] == ['front_left.hip_yaw', 'front_left.hip_pitch',
                                    'front_left.knee']
     np.testing.assert_allclose(sim.pose(), 0.0, atol=1e-3)
@@ -47,36 +56,36 @@ def test_model_mass_names_and_standing(sim):
 
 
 def test_shipped_urdf_is_the_intact_model():
-    with open(hx.URDF_PATH, encoding='utf-8') as handle:
-        assert handle.read() == hx.hexapod_urdf('intact')
+    with open(URDF_PATH, encoding='utf-8') as handle:
+        assert handle.read() == hexapod_urdf('intact')
 
 
 def test_settings_stamp():
-    s = hx.simulator_settings(1 / 240, 3.0)
-    assert s == hx.SIM_DEFAULTS
+    s = simulator_settings(1 / 240, 3.0)
+    assert s == SIM_DEFAULTS
     assert set(s) == {'dt', 'gait_duration', 'controller_version', 'model_version',
                       'solver_iterations'}
     assert s['solver_iterations'] == 50
     with pytest.raises(ValueError, match='dt'):
-        hx.simulator_settings(0.0, 3.0)
+        simulator_settings(0.0, 3.0)
     with pytest.raises(ValueError, match='solver_iterations'):
-        hx.simulator_settings(1 / 240, 3.0, solver_iterations=2.5)
+        simulator_settings(1 / 240, 3.0, solver_iterations=2.5)
     with pytest.raises(ValueError, match='solver_iterations'):
-        hx.simulator_settings(1 / 240, 3.0, solver_iterations=0)
+        simulator_settings(1 / 240, 3.0, solver_iterations=0)
 
 
 def test_archive_without_solver_iterations_means_the_old_default(tmp_path):
     # The shipped 2-D archive predates the key: it was built with 50 iterations.
-    old = {'dt': 1 / 240, 'gait_duration': 3.0, 'model_version': hx.MODEL_VERSION}
-    assert hx.physics_settings(old) == {'dt': 1 / 240, 'gait_duration': 3.0,
+    old = {'dt': 1 / 240, 'gait_duration': 3.0, 'model_version': MODEL_VERSION}
+    assert physics_settings(old) == {'dt': 1 / 240, 'gait_duration': 3.0,
                                         'solver_iterations': 50}
     path = tmp_path / 'a.npz'
     np.savez(path, metadata=np.array(json.dumps({**old, 'solver_iterations': 30,
                                                  'dt': 1 / 120})))
-    assert hx.read_archive_settings(path) == {'dt': 1 / 120, 'gait_duration': 3.0,
+    assert read_archive_settings(path) == {'dt': 1 / 120, 'gait_duration': 3.0,
                                               'solver_iterations': 30}
     with pytest.raises(ValueError, match='cannot read'):
-        hx.read_archive_settings(tmp_path / 'missing.npz')
+        read_archive_settings(tmp_path / 'missing.npz')
 
 
 def test_solver_iterations_reach_the_physics_and_change_outcomes():
@@ -85,8 +94,8 @@ def test_solver_iterations_reach_the_physics_and_change_outcomes():
         assert sim.settings['solver_iterations'] == 30
         sim.reset()
         fewer = sim.execute(gait)
-    default = hx.evaluate_gait(gait)
-    again = hx.evaluate_gait(gait, solver_iterations=30)
+    default = evaluate_gait(gait)
+    again = evaluate_gait(gait, solver_iterations=30)
     # Same settings, same outcome (cached simulators are keyed by the setting too) ...
     np.testing.assert_array_equal(again.end_pose, fewer.end_pose)
     # ... and a different setting is really used: outcomes differ, by centimetres at most.
@@ -105,7 +114,7 @@ def test_tripod_walks_forward(intact_outcome):
 
 @pytest.mark.parametrize('turn', [1, -1])
 def test_turning_gait_turns(turn):
-    out = hx.evaluate_gait(tripod_gait(1.0, 0.5, turn=turn))
+    out = evaluate_gait(tripod_gait(1.0, 0.5, turn=turn))
     assert turn * out.generic_reward[2] > 1.0
     assert abs(out.generic_reward[0]) < 0.15 and not out.fallen
 
@@ -118,7 +127,7 @@ def test_same_gait_twice_is_bitwise_identical(sim):
     b = sim.execute(STRAIGHT)
     _same(a, b)
     # A fresh instance and the cached evaluate_gait agree too.
-    _same(a, hx.evaluate_gait(STRAIGHT))
+    _same(a, evaluate_gait(STRAIGHT))
 
 
 def test_consecutive_gaits_continue(sim):
@@ -164,7 +173,7 @@ def test_remove_leg_drops_mass_and_contacts(sim, intact_outcome):
 
 
 def test_shorten_changes_outcome(intact_outcome):
-    out = hx.evaluate_gait(STRAIGHT, damage='shorten:front_left:0.5')
+    out = evaluate_gait(STRAIGHT, damage='shorten:front_left:0.5')
     assert np.linalg.norm(out.generic_reward - intact_outcome.generic_reward) > 0.02
 
 
@@ -214,7 +223,7 @@ def test_set_damage_keeps_pose(sim):
 
 def test_unknown_damage_lists_valid_names():
     with pytest.raises(DamageSpecError, match='middle_right'):
-        hx.evaluate_gait(STRAIGHT, damage='remove:middle')
+        evaluate_gait(STRAIGHT, damage='remove:middle')
 
 
 def test_fall_detection_upside_down(sim):
@@ -244,16 +253,16 @@ def test_several_instances_coexist():
     a, b = hx.Hexapod(), hx.Hexapod(damage='remove:front_left')
     try:
         assert a.client_id != b.client_id
-        _same(a.execute(STRAIGHT), hx.evaluate_gait(STRAIGHT))
+        _same(a.execute(STRAIGHT), evaluate_gait(STRAIGHT))
     finally:
         a.close()
         b.close()
 
 
 def test_evaluate_gait_is_picklable_and_validates():
-    assert pickle.loads(pickle.dumps(hx.evaluate_gait)) is hx.evaluate_gait
+    assert pickle.loads(pickle.dumps(evaluate_gait)) is evaluate_gait
     with pytest.raises(ValueError, match='shape'):
-        hx.evaluate_gait(np.zeros(3))
+        evaluate_gait(np.zeros(3))
 
 
 def test_gui_without_display_is_a_clear_error(monkeypatch):
@@ -266,6 +275,6 @@ def test_gui_without_display_is_a_clear_error(monkeypatch):
 @pytest.mark.slow
 def test_random_gaits_mostly_upright():
     rng = np.random.default_rng(0)
-    outcomes = [hx.evaluate_gait(rng.random(36)) for _ in range(20)]
+    outcomes = [evaluate_gait(rng.random(36)) for _ in range(20)]
     assert sum(o.fallen for o in outcomes) <= 2
     assert all(np.all(np.abs(o.generic_reward[:2]) < 1.5) for o in outcomes)

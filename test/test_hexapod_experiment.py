@@ -11,8 +11,9 @@ import pytest
 from sela_ros.core.archive import Archive, make_metadata
 from sela_ros.experiments.cli import main
 from sim_bridge import experiment_env
+from sim_bridge.evaluation import evaluate_gait
 from sim_bridge.experiment_env import HexapodEnvironment, oracle_table
-from sim_bridge.hexapod import evaluate_gait, simulator_settings
+from sim_bridge.settings import simulator_settings
 
 REPO = Path(__file__).resolve().parents[1]
 

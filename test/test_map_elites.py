@@ -10,18 +10,11 @@ import numpy as np
 import pytest
 
 from sela_ros.core.archive import load_archive
-from sela_ros.qd.map_elites import (
-    DaskEvaluator,
-    EvaluationResult,
-    GridArchive,
-    MapElites,
-    MapElitesEmitter,
-    ProcessPoolEvaluator,
-    SerialEvaluator,
-    SyntheticEvaluator,
-    arc_fitness,
-    default_run,
-)
+from sela_ros.qd.emitter import MapElitesEmitter
+from sela_ros.qd.evaluators import EvaluationResult, SyntheticEvaluator, arc_fitness
+from sela_ros.qd.executors import DaskEvaluator, ProcessPoolEvaluator, SerialEvaluator
+from sela_ros.qd.grid_archive import GridArchive
+from sela_ros.qd.map_elites import MapElites, default_run
 
 REPO = Path(__file__).resolve().parents[1]
 

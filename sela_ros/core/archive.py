@@ -264,7 +264,7 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
         path: the ``.npz`` file.
         expected_settings: simulator settings the archive must have been built with (keys
             ``dt``, ``gait_duration``, ``controller_version``, ``model_version``; others are
-            ignored), e.g. ``sim_bridge.hexapod.simulator_settings(dt, gait_duration)``.
+            ignored), e.g. ``sim_bridge.settings.simulator_settings(dt, gait_duration)``.
             ``None`` skips the check.
 
     Returns:

@@ -51,7 +51,7 @@ FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never ch
 
 def _archive(text):
     from sela_ros.core.archive import ArchiveError, load_archive
-    from sim_bridge.hexapod import simulator_settings
+    from sim_bridge.settings import simulator_settings
 
     try:
         archive = load_archive(text)

@@ -2,11 +2,12 @@
 
 pyribs supplies the archive (:class:`ribs.archives.CVTArchive`: one elite per Voronoi cell
 around fixed centroids), the iso-line emitters (Vassiliades & Mouret 2018) and the
-ask/tell :class:`ribs.schedulers.Scheduler`. What pyribs lacks comes from
-:mod:`sela_ros.qd.map_elites`: the executors (serial, process pool, Dask), the evaluation
-functions, the run loop with its progress bar, and the per-batch journal beside an atomic
-checkpoint. A checkpoint is a pickle of the whole scheduler (archive, emitters and every
-random generator in them), so a run killed at any moment, even by SIGKILL, resumes from its
+ask/tell :class:`ribs.schedulers.Scheduler`. What pyribs lacks comes from this package:
+the executors (:mod:`~sela_ros.qd.executors`: serial, process pool, Dask), the evaluation
+functions (:mod:`~sela_ros.qd.evaluators`), the run loop with its progress bar, and the
+per-batch journal beside an atomic checkpoint (:mod:`~sela_ros.qd.map_elites`). A
+checkpoint is a pickle of the whole scheduler (archive, emitters and every random
+generator in them), so a run killed at any moment, even by SIGKILL, resumes from its
 checkpoint and journal and ends exactly where an uninterrupted run ends; the file carries
 everything, so it resumes on another machine too (same pyribs version). Only load
 checkpoints you made: unpickling runs code.
@@ -25,7 +26,8 @@ import numpy as np
 
 from sela_ros.core.archive import Archive, make_metadata
 from sela_ros.core.persistence import atomic_write
-from sela_ros.qd.map_elites import CHECKPOINT_FORMAT_VERSION, EvaluationResult, MapElites
+from sela_ros.qd.evaluators import EvaluationResult
+from sela_ros.qd.map_elites import CHECKPOINT_FORMAT_VERSION, MapElites
 
 #: Default descriptor ranges of the 8-D map: final (x, y) in metres, six duty factors.
 XY_DUTY_BOUNDS = ((-0.45, 0.45), (-0.45, 0.45)) + ((0.0, 1.0),) * 6

@@ -6,7 +6,7 @@ Example (the shipped archive, see docs/archive.md)::
         --out sela_ros/data/hexapod_archive.npz --figure docs/figures/archive.png
 
 The paper's 8-D map (final x, y + six duty factors, a CVT archive built with pyribs from
-``requirements-qd.txt``, physics ``sim_bridge.hexapod.FAST_SETTINGS``)::
+``requirements-qd.txt``, physics ``sim_bridge.settings.FAST_SETTINGS``)::
 
     sela-build-archive --descriptor 8d --cells 20000 --evaluations 100000 --workers 1 \\
         --checkpoint /work/mapbuild/map8d.checkpoint.pkl --out /work/mapbuild/map8d.npz
@@ -35,15 +35,9 @@ import numpy as np
 
 from sela_ros.core import N_PARAMS
 from sela_ros.core.archive import Archive
-from sela_ros.qd.map_elites import (
-    DaskEvaluator,
-    HexapodEvaluator,
-    MapElites,
-    ProcessPoolEvaluator,
-    SerialEvaluator,
-    SyntheticEvaluator,
-    default_run,
-)
+from sela_ros.qd.evaluators import HexapodEvaluator, SyntheticEvaluator
+from sela_ros.qd.executors import DaskEvaluator, ProcessPoolEvaluator, SerialEvaluator
+from sela_ros.qd.map_elites import MapElites, default_run
 
 DEFAULT_GRID = (64, 64)
 DEFAULT_BOUNDS = (-0.6, 0.6, -0.6, 0.6)
@@ -154,7 +148,7 @@ def _checkpoint_path(args: argparse.Namespace) -> Path:
 
 def _physics(args: argparse.Namespace) -> tuple[float, int]:
     """dt and solver iterations: the options, else the defaults of the descriptor's map."""
-    from sim_bridge.hexapod import FAST_SETTINGS, SIM_DEFAULTS
+    from sim_bridge.settings import FAST_SETTINGS, SIM_DEFAULTS
 
     defaults = FAST_SETTINGS if args.descriptor == '8d' else SIM_DEFAULTS
     dt = args.dt if args.dt is not None else defaults['dt']
@@ -198,7 +192,7 @@ def archive_figure(archive: Archive, path: str | os.PathLike) -> Path:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from sela_ros.qd.map_elites import GridArchive
+    from sela_ros.qd.grid_archive import GridArchive
 
     grid = GridArchive(archive.metadata['grid_shape'], archive.descriptor_bounds)
     cells = grid.index_of(archive.descriptors)

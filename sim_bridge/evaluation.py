@@ -1,0 +1,44 @@
+"""One gait from a fresh standing start, on cached simulators: the robot's evaluation for
+map building (picklable, so worker processes of the map builder call it)."""
+from __future__ import annotations
+
+from collections import OrderedDict
+
+from sim_bridge.damage import parse_damage
+from sim_bridge.hexapod import GaitOutcome, Hexapod
+from sim_bridge.settings import SIM_DEFAULTS, simulator_settings
+
+_CACHE: OrderedDict = OrderedDict()
+_CACHE_SIZE = 4
+
+
+def _cached_hexapod(damage, dt, gait_duration, solver_iterations) -> Hexapod:
+    spec = parse_damage(damage)
+    settings = simulator_settings(dt, gait_duration, solver_iterations)
+    key = (spec, settings['dt'], settings['gait_duration'], settings['solver_iterations'])
+    sim = _CACHE.get(key)
+    if sim is None:
+        sim = Hexapod(dt=settings['dt'], gait_duration=settings['gait_duration'], damage=spec,
+                      solver_iterations=settings['solver_iterations'])
+        _CACHE[key] = sim
+        while len(_CACHE) > _CACHE_SIZE:
+            _, old = _CACHE.popitem(last=False)
+            old.close()
+    else:
+        _CACHE.move_to_end(key)
+    return sim
+
+
+def evaluate_gait(params, damage='intact', dt: float = SIM_DEFAULTS['dt'],
+                  gait_duration: float = SIM_DEFAULTS['gait_duration'],
+                  solver_iterations: int = SIM_DEFAULTS['solver_iterations']) -> GaitOutcome:
+    """One gait from a fresh standing start at the origin (deterministic, picklable).
+
+    Uses a per-process cache of simulators (one per damage/dt/duration, reset with
+    ``restoreState``), so it is cheap to call many times in a worker process.
+    ``sim_time`` of the outcome is the gait duration.
+    """
+    sim = _cached_hexapod(damage, dt, gait_duration, solver_iterations)
+    sim.reset()
+    sim._sim_time = 0.0
+    return sim.execute(params)
