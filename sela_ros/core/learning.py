@@ -16,6 +16,10 @@ def make_sela(archive, config=None):
                 config=SELAConfig.from_dict(dict(config or {})))
 
 
+#: What a detection does to what was learned while adapting (``adaptation.on_detection``).
+ON_DETECTION = ('reset', 'keep', 'evidence')
+
+
 class MissionLogic:
     """The learning half of a mission: decide, record and learn, adapt.
 
@@ -28,8 +32,14 @@ class MissionLogic:
             good, and the robot would try it again and again from the start).
     """
 
-    def __init__(self, sela, adapt_on_start=False, reset_on_fall=False):
+    def __init__(self, sela, adapt_on_start=False, reset_on_fall=False, on_detection='reset',
+                 evidence_threshold=0.25):
+        if on_detection not in ON_DETECTION:
+            raise ValueError(f'adaptation.on_detection must be one of {ON_DETECTION}, got '
+                             f'{on_detection!r}')
         self.sela = sela
+        self.on_detection = on_detection
+        self.evidence_threshold = float(evidence_threshold)
         self.reset_on_fall = bool(reset_on_fall)
         self.adapting = bool(adapt_on_start)
         self.adaptations = 1 if adapt_on_start else 0
@@ -63,15 +73,40 @@ class MissionLogic:
         return float(decision.sigma) if self.adapting else 0.0
 
     def adapt(self):
-        """Start adaptation, or restart it from scratch if it was running."""
-        if self.adapting:
-            self.sela.reset_learning()
-        self.adapting = True
-        self.adaptations += 1
-        if self.last is not None:
-            self.sela.tell(*self.last)
+        """Start adaptation, or decide what to keep when it was running (``on_detection``).
+
+        Returns whether what was learned was kept (False: restarted from the latest step).
+        """
         if self.records:
             self.records[-1].detected = True
+        self.adaptations += 1
+        if not self.adapting:
+            self.adapting = True
+            if self.last is not None:
+                self.sela.tell(*self.last)
+            return True
+        if not self._new_damage():
+            return True  # the latest step is learnt already: nothing to do
+        self.sela.reset_learning()
+        if self.last is not None:
+            self.sela.tell(*self.last)
+        return False
+
+    def _new_damage(self):
+        """Does the evidence say the robot changed (so that what was learned is wrong)?"""
+        if self.on_detection == 'keep':
+            return False
+        if self.on_detection == 'reset' or self.last is None:
+            return True
+        # 'evidence': the triggering gait had been learnt before and now does something
+        # else: that is a new damage; a gait tried for the first time proves nothing.
+        index, latest = self.last
+        indices, observed = self.sela.observations
+        before = observed[:-1][indices[:-1] == index]
+        if not len(before):
+            return False
+        return float(np.linalg.norm(before.mean(axis=0)[:2] - latest[:2])) > \
+            self.evidence_threshold
 
     def forget(self, adapt_on_start):
         """Back to the intact map: every observation forgotten."""

@@ -53,7 +53,7 @@ def as_seen_in_odometry(pose):
 
 def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
                 detector_config=None, max_steps=100, adapt_on_start=False, on_step=None,
-                reset_on_fall=False):
+                reset_on_fall=False, on_detection='reset'):
     """Run the whole mission in process against ``env`` (an ObservedHexapod-like object).
 
     The first step starts from the robot's odometry, later ones from the observed pose after
@@ -64,7 +64,8 @@ def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
     as the adapter judges it; ``logic.records`` lists the steps.
     """
     stepper = MissionStepper(make_sela(archive, sela_config), StepperConfig(
-        max_steps=max_steps, adapt_on_start=adapt_on_start, reset_on_fall=reset_on_fall))
+        max_steps=max_steps, adapt_on_start=adapt_on_start, reset_on_fall=reset_on_fall,
+        on_detection=on_detection))
     detector = DamageDetector(detector_config or DetectorConfig())
 
     def odometry():

@@ -75,29 +75,6 @@ def state_document(archive_size, snapshot):
     return {'format': STATE_FORMAT, 'archive_size': int(archive_size), **snapshot}
 
 
-class StateWriter:
-    """Writes state documents to ``path`` off the caller's thread, one at a time, in order
-    (a later snapshot always lands after an earlier one); ``on_error(message)`` on failure."""
-
-    def __init__(self, path, on_error):
-        self.path = path
-        self.on_error = on_error
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix='state_writer')
-
-    def submit(self, document):
-        self._pool.submit(self._write, document)
-
-    def _write(self, document):
-        try:
-            atomic_write_json(self.path, document)
-        except (OSError, ValueError) as exc:
-            self.on_error(f'could not save the learned state to {self.path}: {exc}')
-
-    def close(self):
-        """Wait for the last write: it reaches the disk."""
-        self._pool.shutdown(wait=True)
-
-
 def _no_constant(name):
     raise ValueError(f'{name} is not a number JSON allows')
 

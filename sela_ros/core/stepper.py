@@ -26,6 +26,7 @@ import numpy as np
 from sela_ros.core.learning import MissionLogic
 from sela_ros.core.mission_state import mission_snapshot, restore_mission
 from sela_ros.core.mission_status import detection_status, goal_status, mission_status
+from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
 from sela_ros.core.stepper_io import (
     AdaptRequested,
     AskedPlan,
@@ -64,7 +65,8 @@ class MissionStepper:
 
     def __init__(self, sela, config=None):
         self.config = config or StepperConfig()
-        self.logic = MissionLogic(sela, self.config.adapt_on_start, self.config.reset_on_fall)
+        self.logic = MissionLogic(sela, self.config.adapt_on_start, self.config.reset_on_fall,
+                                  self.config.on_detection)
         self.state = State.IDLE
         self.goal = None
         self.goals_left = []  # a mission's goals after the current one, in order
@@ -186,6 +188,14 @@ class MissionStepper:
                 return [Report(Level.WARN, f'ignored outcome {event.behavior_id}: it pairs '
                                'with no command of this adapter')]
             return []
+        try:
+            check_outcome(event.generic_reward, p.pose, event.end_pose,
+                          OutcomeLimits(self.config.max_displacement))
+        except ImplausibleOutcome as exc:
+            # Never learnt, never a pose to start from; the command is sent again after
+            # outcome_timeout unless a plausible outcome comes first.
+            return [Report(Level.ERROR, f'outcome of command {event.behavior_id} refused, not '
+                           f'learnt: {exc}')]
         self.resume = None
         p.t_outcome = now
         self.pose = np.asarray(event.end_pose, dtype=float)
@@ -206,14 +216,17 @@ class MissionStepper:
                               'flipped' + ('; resetting it through /sim_bridge/reset'
                                            if self.reset_needed else '')))
         reward = -float(np.linalg.norm(p.waypoint - self.pose[:2]))
-        out += [PublishReward(reward), PublishStatus(Level.OK, 'step', self.status(reward))]
+        announce = [PublishReward(reward), PublishStatus(Level.OK, 'step', self.status(reward))]
         self.state = State.VERDICT
         p.deadline = now + self.config.detector_timeout
+        # Acknowledged means durable: the save comes first, the step is announced after it
+        # (the driver releases the announcement once the save is on disk).
         if self.adapt_after_outcome:
             self.adapt_after_outcome = False
             out += self._adapt()[1]
         else:
             out.append(self._save())
+        out += announce
         if p.behavior_id in self._verdicts:
             out += self._verdict(self._verdicts.pop(p.behavior_id))
         return out
@@ -251,9 +264,10 @@ class MissionStepper:
 
     def _adapt(self):
         restarting = self.logic.adapting
-        self.logic.adapt()
-        message = (('adaptation restarted from scratch' if restarting
-                    else 'adaptation started')
+        kept = self.logic.adapt()
+        message = (('adaptation started' if not restarting
+                    else 'adaptation goes on with what it learned' if kept
+                    else 'adaptation restarted from scratch')
                    + f' ({len(self.sela.observations[0])} observation(s))')
         return message, [Report(Level.WARN, message), self._save()]
 

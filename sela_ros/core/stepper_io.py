@@ -176,6 +176,8 @@ class StepperConfig:
     adapt_on_start: bool = False
     reset_on_fall: bool = False
     pose_tolerance: float = 0.1  # m: odometry this far from the held pose replaces it
+    on_detection: str = 'reset'  # a detection while adapting: see learning.ON_DETECTION
+    max_displacement: float = 2.0  # m: an outcome moving the robot further is refused
 
 
 @dataclass

@@ -10,6 +10,7 @@ learned and where the mission stands go to ``state_file`` after every step and c
 start-up (``resume``). A bad archive is reported and the node stays up: set a good one with
 ``ros2 param set /sela_adapter archive PATH``.
 """
+import os
 from collections import deque
 
 from nav_msgs.srv import GetPlan
@@ -23,10 +24,12 @@ from sela_ros.core import persistence
 from sela_ros.core import stepper_io as io
 from sela_ros.core.archive import ArchiveError, default_archive_path, load_archive
 from sela_ros.core.learning import make_sela
+from sela_ros.core.planning import OccupancyGrid
 from sela_ros.core.stepper import MissionStepper
 from sela_ros.nodes import adapter_params as params
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import declare
@@ -42,8 +45,14 @@ class SelaAdapter(Node):
         self.frame_id = self.values['frame_id']
         self.archive = self.stepper = None
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
-        self.writer = persistence.StateWriter(self.values['state_file'] or str(
-            persistence.default_state_file()), self.get_logger().error)
+        # Saves are written off the executor's thread; what announces a step waits for the
+        # save before it (acknowledged means durable) and is released on the executor's
+        # thread through this guard condition.
+        self._saved = self.create_guard_condition(self._release_saved)
+        self.store = persistence.StateStore(self.values['state_file'] or str(
+            persistence.default_state_file()), on_released=self._saved.trigger)
+        self.archive_path = None
+        self.map = None  # the planner's map (latched): goals off it are refused at once
         self._events, self._feeding, self._reply = deque(), False, None
         self._deferred_plan = None  # a plan request waiting for the planner to come up
         self.pubs = {kind: ifc.publisher(self, topic) for kind, topic in (
@@ -65,10 +74,11 @@ class SelaAdapter(Node):
         self.reset_client = ifc.client(self, ifc.RESET)
         self.sim_check = SimulatorCheck(self, self.values['simulator_node'],
                                         lambda reason: self._feed(io.HoldChanged(reason)))
+        ifc.subscription(self, ifc.MAP, self.map_callback)
         ifc.server(self, ifc.ADAPT, lambda q, a: self._ask(
-            io.AdaptRequested(), a, 'no archive loaded: set the archive parameter first'))
+            io.AdaptRequested(), 'no archive loaded: set the archive parameter first', a))
         ifc.server(self, ifc.CLEAR, lambda q, a: self._ask(
-            io.ClearRequested(), a, 'no archive loaded: nothing to clear'))
+            io.ClearRequested(), 'no archive loaded: nothing to clear', a))
         self.add_on_set_parameters_callback(self.parameters_callback)
         add_heartbeat(self)
         try:
@@ -83,7 +93,7 @@ class SelaAdapter(Node):
     def _use_archive(self, path):
         path = path or str(default_archive_path())
         archive, old = load_archive(path), self.stepper
-        self.archive = archive
+        self.archive, self.archive_path = archive, path
         self.stepper = MissionStepper(make_sela(archive, params.sela_config(self.values)),
                                       params.stepper_config(self.values))
         self.sim_check.use(archive, path)
@@ -95,18 +105,48 @@ class SelaAdapter(Node):
                 self._feed(io.PoseObserved(tuple(old.odom), old.odom_stamp))
             self._feed(io.GoalsReceived((tuple(old.goal), *map(tuple, old.goals_left))))
 
-    def _resume(self):
-        path = self.writer.path
+    def _archive_change(self, value):
+        """Why ``archive`` cannot become ``value`` now, or None (then it is in use).
+
+        The same file again keeps everything (nothing to load). Another file would make what
+        was learned meaningless (its indices are the old archive's gaits): refused while
+        anything is learned, until ``~/clear``.
+        """
+        path = value or str(default_archive_path())
+        if self.archive is not None and _same_file(path, self.archive_path):
+            self.get_logger().info(f'archive {path} is the one in use: kept, with what was '
+                                   'learned on it')
+            return None
+        if self.stepper is not None and self.stepper.state not in (
+                io.State.IDLE, io.State.DONE, io.State.READY):
+            return 'archive cannot change mid-step'
+        learned = 0 if self.stepper is None else len(self.stepper.sela.observations[0])
+        if learned:
+            return (f'archive {path} refused: {learned} observation(s) were learned on '
+                    f'{self.archive_path} and would be lost; call '
+                    f'{self.get_name()}/clear first, then set the archive again')
         try:
-            state = persistence.load_state(path, len(self.archive))
-            if state is not None:
-                self._dispatch(self.stepper.restore(state, self._now()))
-        except (persistence.StateError, KeyError, TypeError, ValueError) as exc:
-            kept = persistence.set_aside(path)
-            self.stepper = None
-            self._use_archive(self.values['archive'])
-            self._report(io.Level.ERROR, f'{exc}; kept it as {kept} and started afresh')
+            self._use_archive(path)
+        except ArchiveError as exc:
+            return str(exc)
+        return None
+
+    def _resume(self):
+        path = self.store.path
+        restored = []
+
+        def restore(state):
+            # Into a fresh stepper, swapped in only once all of it came back.
+            stepper = MissionStepper(make_sela(self.archive, params.sela_config(self.values)),
+                                     params.stepper_config(self.values))
+            restored.extend(stepper.restore(state, self._now()))
+            self.stepper = stepper
+
+        state, problem = persistence.resume_state(path, len(self.archive), restore)
+        if problem:
+            self._report(io.Level.ERROR, problem)
             return
+        self._dispatch(restored)
         if state is not None:
             mode = 'adapting' if self.stepper.logic.adapting else 'trusting the map'
             self.get_logger().warn(f'resumed from {path}: '
@@ -115,6 +155,7 @@ class SelaAdapter(Node):
 
     # --- inputs -> events ----------------------------------------------------------------
 
+    @guard(what='input')
     def _translate(self, msg, make_event, what):
         if isinstance(msg, (ifc.GOAL.type, ifc.GOAL_PATH.type)):
             self.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
@@ -123,14 +164,43 @@ class SelaAdapter(Node):
         except conv.MessageError as exc:
             self.get_logger().error(f'{what}: {exc}')
             return
+        if isinstance(event, io.GoalReceived) and self._goal_refused(event.goal):
+            return
         self._feed(event)
 
-    def _ask(self, event, response, refusal):
+    @guard
+    def map_callback(self, msg):
+        try:
+            self.map = OccupancyGrid(*conv.occupancy_grid_from_msg(msg))
+        except (conv.MessageError, ValueError) as exc:
+            self.get_logger().error(f'ignored map: {exc}')
+
+    def _goal_refused(self, goal):
+        """A goal off the planner's map or inside an obstacle cannot be planned: refused
+        here, and a mission in progress goes on (without a map: the planner decides)."""
+        if self.map is None:
+            return False
+        if not self.map.in_map(goal):
+            problem = f'off the map {self.map.bounds_text()}'
+        elif not self.map.is_free(self.map.world_to_cell(goal)):
+            problem = 'inside an obstacle'
+        else:
+            return False
+        running = self.stepper is not None and self.stepper.goal is not None and \
+            self.stepper.state not in (io.State.IDLE, io.State.DONE)
+        self._report(io.Level.ERROR, f'goal ({goal[0]:.2f}, {goal[1]:.2f}) refused: {problem}'
+                     + (f'; the mission to ({self.stepper.goal[0]:.2f}, '
+                        f'{self.stepper.goal[1]:.2f}) goes on' if running else ''))
+        return True
+
+    @guard_service(what='service')
+    def _ask(self, event, refusal, response):
         self._reply = io.Reply(False, refusal)
         self._feed(event)
         response.success, response.message = self._reply.success, self._reply.message
         return response
 
+    @guard
     def tick(self):
         self.sim_check.poll()
         if self._deferred_plan is not None and self.plan_client.service_is_ready():
@@ -138,18 +208,14 @@ class SelaAdapter(Node):
             self._request_plan(command)
         self._feed(io.Tick())
 
+    @guard_parameters
     def parameters_callback(self, changes):
         # Called by params.declare with values its check accepted (the rest is read-only).
         for param in changes:
             if param.name == 'archive':
-                if self.stepper is not None and self.stepper.state not in (
-                        io.State.IDLE, io.State.DONE, io.State.READY):
-                    return SetParametersResult(successful=False,
-                                               reason='archive cannot change mid-step')
-                try:
-                    self._use_archive(param.value)
-                except ArchiveError as exc:
-                    return SetParametersResult(successful=False, reason=str(exc))
+                problem = self._archive_change(param.value)
+                if problem:
+                    return SetParametersResult(successful=False, reason=problem)
             elif self.stepper is not None:
                 self.stepper.configure(**params.stepper_change(param.name, param.value))
             self.values[param.name] = param.value
@@ -187,16 +253,29 @@ class SelaAdapter(Node):
             elif isinstance(c, io.RequestReset):
                 self._call(self.reset_client, Trigger.Request(), lambda a: io.ResetDone(
                     bool(a and a.success), a.message if a else 'no answer'))
-            elif isinstance(c, io.PublishReward):
-                self.pubs['reward'].publish(Float64(data=c.value))
-            elif isinstance(c, io.PublishStatus):
-                self._status(c.level, c.message, c.values)
+            elif isinstance(c, (io.PublishReward, io.PublishStatus)):
+                # Acknowledged means durable: out once the saves before it are on disk.
+                self.store.after_saves(c)
+                self._release_saved()
             elif isinstance(c, io.Report):
                 self._report(c.level, c.message)
             elif isinstance(c, io.Reply):
                 self._reply = c
             elif isinstance(c, io.SaveState):  # the fsync'ed write is off the step's path
-                self.writer.submit(persistence.state_document(len(self.archive), c.snapshot))
+                self.store.save(persistence.state_document(len(self.archive), c.snapshot))
+
+    @guard(what='announcement')
+    def _release_saved(self):
+        for items, error in self.store.released():
+            if error:
+                self._report(io.Level.ERROR, f'{error}: what was learned since the last '
+                             'good save is only in memory')
+            for c in items:
+                if isinstance(c, io.PublishReward):
+                    self.pubs['reward'].publish(Float64(data=c.value))
+                else:
+                    self._status(c.level, c.message, dict(
+                        c.values, saved='False' if error else 'True'))
 
     def _request_plan(self, command):
         if not self.plan_client.service_is_ready():
@@ -237,8 +316,15 @@ class SelaAdapter(Node):
             self.get_clock().now().to_msg()))
 
     def destroy_node(self):
-        self.writer.close()  # the last snapshot reaches the disk
+        self.store.close()  # the last snapshot reaches the disk
         super().destroy_node()
+
+
+def _same_file(a, b):
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError, TypeError):
+        return False
 
 
 def main(args=None):

@@ -1,5 +1,6 @@
 """The ``sela_adapter`` node's parameters: names, defaults, descriptions, ranges, and what
 they configure (SELA and the mission stepper). Declared through :func:`params.declare`."""
+from sela_ros.core.learning import ON_DETECTION
 from sela_ros.core.stepper_io import StepperConfig
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.params import Spec
@@ -29,6 +30,13 @@ PARAMETERS = (
     Spec('resume', True, 'read the state file at start-up (lifelong learning)', read_only=True),
     Spec('reset_on_fall', True, 'after a step that ends fallen, call sim_bridge/reset',
          read_only=True),
+    Spec('adaptation.on_detection', 'evidence', 'a new detection while adapting: keep what '
+         "was learned ('keep'), restart from the latest step ('reset'), or restart only when "
+         "the triggering gait was learned before and now does something else ('evidence')",
+         rule=lambda v: None if v in ON_DETECTION else f'must be one of {ON_DETECTION}',
+         read_only=True),
+    Spec('outcome.max_displacement', 2.0, 'an outcome that moves the robot further than this '
+         'in one gait is refused, never learnt', low=1e-3, high=1e6, unit=' m'),
     Spec('simulator_node', ifc.SIM_BRIDGE, "whose sim.dt, sim.gait_duration and "
          "sim.solver_iterations the archive must match ('' on a real robot: no check)",
          read_only=True),
@@ -37,7 +45,11 @@ SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
              'fall.risk.threshold')
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
-                'adapt_on_start': bool, 'reset_on_fall': bool}
+                'adapt_on_start': bool, 'reset_on_fall': bool,
+                'adaptation.on_detection': str, 'outcome.max_displacement': float}
+# Parameter name -> StepperConfig field, where they differ.
+_FIELDS = {'adaptation.on_detection': 'on_detection',
+           'outcome.max_displacement': 'max_displacement'}
 
 
 def sela_config(values):
@@ -45,9 +57,9 @@ def sela_config(values):
 
 
 def stepper_config(values):
-    return StepperConfig(**{k: t(values[k]) for k, t in STEPPER_KEYS.items()})
+    return StepperConfig(**{_FIELDS.get(k, k): t(values[k]) for k, t in STEPPER_KEYS.items()})
 
 
 def stepper_change(name, value):
     """``{field: value}`` for :meth:`MissionStepper.configure` ({} if not a stepper's)."""
-    return {name: STEPPER_KEYS[name](value)} if name in STEPPER_KEYS else {}
+    return {_FIELDS.get(name, name): STEPPER_KEYS[name](value)} if name in STEPPER_KEYS else {}

@@ -94,3 +94,18 @@ guard_service = _decorator(_failed_response, 'Decorate a service callback '
                            '``(self, request, response)``.')
 guard_parameters = _decorator(_refused, 'Decorate an on-set-parameters callback '
                               '``(self, params)``.')
+
+
+def spin_guarded(executor, node):
+    """``executor.spin()``, except that an exception a callback raises is reported and the
+    spin goes on: the outer guard, for what no decorator covers (a lambda, a done callback,
+    rclpy's own callbacks such as the sim-time ``/clock`` subscription)."""
+    from rclpy.executors import ExternalShutdownException, ShutdownException
+
+    while executor.context.ok():
+        try:
+            executor.spin_once()
+        except (ExternalShutdownException, ShutdownException):
+            raise
+        except Exception as exc:  # noqa: BLE001 - reported; the node keeps running
+            report_exception(node, 'callback', exc)

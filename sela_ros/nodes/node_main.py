@@ -6,6 +6,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 
+from sela_ros.nodes.guard import spin_guarded
 from sela_ros.nodes.params import StartupParameterError, params_file_problems
 
 #: Exit status of a node that refuses to start on a bad configuration (as argparse's).
@@ -49,7 +50,7 @@ def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
         node = node_class()
         executor = executor_factory()
         executor.add_node(node)
-        executor.spin()
+        spin_guarded(executor, node)
     except StartupParameterError as exc:
         # One line, as for a refused `ros2 param set`: the same check said it.
         name = exc.node_name or node_class.__name__
