@@ -203,15 +203,24 @@ def test_goal_inside_an_obstacle_is_refused_and_the_next_goal_goes_around_it(gra
     paths = []
     ifc.subscription(client.node, ifc.PATH, paths.append)
     client.wait_for_publishers((ifc.DIAGNOSTICS.root_name, ifc.PATH.root_name))
-    diag.go_to_pose(0.9, 0.9)
+    diag.wait_until_ready()
+    diag.publish_goal(0.9, 0.9)
     client.spin_until(lambda: any('inside an obstacle' in e for e in diag.errors('planner')),
                       60, 'the goal inside the obstacle reported by the planner')
-    client.spin_until(lambda: any('no plan to the goal' in e
+    # The adapter refuses it (against the planner's map) or, without the map yet, has no plan.
+    client.spin_until(lambda: any('inside an obstacle' in e or 'no plan to the goal' in e
                                   for e in diag.errors('sela_adapter')), 60,
-                      'the adapter saying it has no plan')
+                      'the adapter refusing the goal')
     assert not diag.steps  # no gait was sent toward a goal that cannot be reached
-    # A goal behind the obstacle: reached, on paths that never cross it.
+    # A goal behind the obstacle: reached, on paths that never cross it, although goals that
+    # cannot be planned arrive on the way: refused, and the running mission goes on.
     diag.go_to_pose(1.5, 1.5)
+    client.spin_until(lambda: len(diag.steps) >= 2, 300, 'two steps')
+    for bad in ((0.9, 0.9), (40.0, 0.0)):
+        diag.publish_goal(*bad)
+    client.spin_until(lambda: len([e for e in diag.errors('sela_adapter')
+                                   if 'the mission to (1.50, 1.50) goes on' in e]) >= 2, 60,
+                      'both bad goals refused mid-mission')
     client.spin_until(diag.get_result, 300, 'the end of the mission')
     assert diag.get_result().success, nodes.logs()
     assert paths

@@ -64,15 +64,37 @@ class DamageDetectorNode(Node):
         ifc.subscription(self, ifc.OUTCOME, self.outcome_callback)
         # Watch the other nodes' heartbeats: a silent node is reported on diagnostics.
         self.watch = SilenceWatch(values['heartbeat.nodes'], values['heartbeat.timeout'])
+        self._talkers, self._faked = (-1.0, set()), set()
         ifc.subscription(self, ifc.DIAGNOSTICS, self.diagnostics_callback)
         self.create_timer(0.5, self.check_heartbeats, clock=self.wall)
         add_heartbeat(self)
         self.get_logger().info(f'threshold {self.detector.config.threshold} m')
 
+    def _diagnostics_publishers(self):
+        """Nodes the graph shows publishing diagnostics in this namespace (refreshed at most
+        every 0.2 s: heartbeats are judged by who the graph says can send them)."""
+        now = self.wall.now().nanoseconds * 1e-9
+        if now - self._talkers[0] > 0.2:
+            topic = self.resolve_topic_name(ifc.DIAGNOSTICS.name)
+            namespace = self.get_namespace()
+            self._talkers = (now, {i.node_name for i in self.get_publishers_info_by_topic(
+                topic) if i.node_namespace == namespace})
+        return self._talkers[1]
+
     @guard
     def diagnostics_callback(self, msg):
         for status in msg.status:
-            self.watch.heard(status.name)
+            if not status.name.endswith(ifc.HEARTBEAT_SUFFIX):
+                continue
+            faked = self.watch.heard(status.name, publishers=self._diagnostics_publishers())
+            if faked and faked not in self._faked:
+                self._faked.add(faked)  # said once per episode, not at every fake
+                message = (f'heartbeat of {faked} sent by another process: {faked} is not in '
+                           'the graph; not counted')
+                self.get_logger().error(message)
+                self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
+                    DiagnosticStatus.ERROR, f'{faked}: liveness', message),
+                    self.get_clock().now().to_msg()))
 
     @guard
     def check_heartbeats(self):
@@ -85,6 +107,7 @@ class DamageDetectorNode(Node):
             statuses.append(conv.diagnostic_status(DiagnosticStatus.ERROR,
                                                    f'{node}: liveness', message))
         for node in back:
+            self._faked.discard(node)
             self.get_logger().info(f'{node} is back')
             statuses.append(conv.diagnostic_status(DiagnosticStatus.OK, f'{node}: liveness',
                                                    'heartbeat back'))

@@ -34,11 +34,24 @@ class SilenceWatch:
         self.last = {n: start for n in nodes}
         self.silent = set()
 
-    def heard(self, status_name, now=None):
-        if status_name.endswith(SUFFIX):
-            node = status_name[:-len(SUFFIX)]
-            if node in self.last:
-                self.last[node] = time.monotonic() if now is None else now
+    def heard(self, status_name, now=None, publishers=None):
+        """A status named ``status_name`` was heard. Returns the watched node it claims to
+        be the heartbeat of when that claim is refused (else None).
+
+        Anyone can publish ``planner: heartbeat`` on diagnostics. With ``publishers`` (the
+        names of the nodes the graph shows publishing diagnostics), a heartbeat counts only
+        while its node is among them: a process that fakes the heartbeat of a node that is
+        gone does not keep it alive.
+        """
+        if not status_name.endswith(SUFFIX):
+            return None
+        node = status_name[:-len(SUFFIX)]
+        if node not in self.last:
+            return None
+        if publishers is not None and node not in publishers:
+            return node
+        self.last[node] = time.monotonic() if now is None else now
+        return None
 
     def check(self, now=None):
         """Return ``(newly_silent, back)``: node lists whose state changed since last check."""

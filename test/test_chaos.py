@@ -1,0 +1,78 @@
+"""Chaos: a mission of several goals while nodes are SIGKILLed and restarted at random (seeded).
+No observation is lost and every goal is reached, judged on the simulator's true pose."""
+import json
+import random
+
+import numpy as np
+import pytest
+
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import interface as ifc
+from sela_ros.tools.mission_client import MissionClient
+
+from ros_graph import Client, NodeProcesses
+
+pytestmark = [pytest.mark.dds, pytest.mark.slow]
+
+SEED = 20261130
+GOALS = ((1.0, 0.6), (0.2, 1.2), (1.2, 1.4))
+KILLS = 4  # spread over the mission, each at a random step, of a random node
+# The adapter judges the goal on the observed pose (noise std 0.01 m) within goal.eps 0.1 m.
+TRUE_POSE_TOLERANCE = 0.1 + 0.05
+
+
+def _observations(path):
+    try:
+        state = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return list(zip(state['sela']['indices'],
+                    (tuple(r) for r in state['sela']['generic_rewards'])))
+
+
+def test_goals_are_reached_and_nothing_learned_is_lost_while_nodes_are_killed():
+    rng = random.Random(SEED)
+    nodes = NodeProcesses({'sim_bridge': {'damage': 'remove:middle_right', 'seed': 3},
+                           # Keep what was learned on every detection: any observation that
+                           # disappears was lost to a crash, not forgotten on purpose.
+                           'sela_adapter': {'outcome_timeout': 3.0, 'adapt_on_start': True,
+                                            'adaptation.on_detection': 'keep'},
+                           'damage_detector': {'heartbeat.timeout': 2.0}})
+    client = Client('sela_chaos')
+    odom = []
+    try:
+        mission = MissionClient(client.node, lambda t: client.executor.spin_once(timeout_sec=t))
+        ifc.subscription(client.node, ifc.ODOM, lambda m: odom.append(conv.pose_from_odometry(m)))
+        kill_at = sorted(rng.sample(range(2, 26), KILLS))
+        victims = [rng.choice(sorted(nodes.procs)) for _ in kill_at]
+        killed, seen = [], []
+        for goal in GOALS:
+            mission.go_to_pose(*goal, timeout=120)
+            while mission.get_result() is None:
+                client.spin_until(lambda: mission.get_result() is not None
+                                  or (kill_at and len(mission.steps) >= kill_at[0]), 600,
+                                  f'the mission to {goal} (or the next kill)')
+                saved = _observations(nodes.state_file)
+                if saved is not None:
+                    # Nothing learned is ever lost: every saved list extends the previous one.
+                    assert saved[:len(seen)] == seen, (seen, saved)
+                    seen = saved
+                if mission.get_result() is None and kill_at:
+                    kill_at.pop(0)
+                    victim = victims.pop(0)
+                    nodes.kill(victim)
+                    nodes.start(victim)
+                    killed.append(victim)
+            assert mission.get_result().success, (goal, mission.get_result(), nodes.logs())
+            # Reached for real: the simulator's own pose, once it has published it.
+            heard = len(odom)
+            client.spin_until(lambda heard=heard: len(odom) > heard, 30, 'the true pose')
+            assert np.hypot(*(odom[-1][:2] - np.array(goal))) < TRUE_POSE_TOLERANCE, \
+                (goal, odom[-1])
+        assert killed, 'no node was killed: the mission was shorter than the first kill'
+        final = _observations(nodes.state_file)
+        assert final[:len(seen)] == seen and len(final) >= len(seen)
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
