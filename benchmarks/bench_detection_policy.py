@@ -35,7 +35,7 @@ SCENARIOS = (
 )
 
 
-def run(archive, scenario, policy, seed, max_steps):
+def run(archive, scenario, policy, seed, max_steps, adapt_on_start=False):
     _, damage, change, goal = scenario
     robot = Hexapod(damage=damage)
     env = ObservedHexapod(robot, 0.01, seed=seed)
@@ -48,7 +48,7 @@ def run(archive, scenario, policy, seed, max_steps):
         success, logic = run_mission(env, archive, goal, GridPlanner(grid), lookahead=0.6,
                                      detector_config=DetectorConfig(), max_steps=max_steps,
                                      on_step=on_step, reset_on_fall=True,
-                                     on_detection=policy)
+                                     on_detection=policy, adapt_on_start=adapt_on_start)
     finally:
         robot.close()
     detections = sum(r.detected for r in logic.records)
@@ -60,16 +60,23 @@ def main():
     parser.add_argument('--replicates', type=int, default=3)
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--max-steps', type=int, default=60)
+    parser.add_argument('--adapt-on-start', action='store_true',
+                        help='learn from the first step: every detection comes while adapting')
+    parser.add_argument('--scenarios', default=None,
+                        help='comma-separated scenario numbers (1-based; default: all)')
     args = parser.parse_args()
     archive = load_archive(default_archive_path())
     print(f'{args.replicates} replicates (seeds {args.seed}..{args.seed + args.replicates - 1}), '
-          f'max {args.max_steps} steps')
+          f'max {args.max_steps} steps' + (', adapting from the first step'
+                                           if args.adapt_on_start else ''))
+    chosen = SCENARIOS if not args.scenarios else [
+        SCENARIOS[int(i) - 1] for i in args.scenarios.split(',')]
     print(f'{"scenario":55s} {"policy":9s} success  median steps  detections  wall')
-    for scenario in SCENARIOS:
+    for scenario in chosen:
         for policy in POLICIES:
             start = time.perf_counter()
-            runs = [run(archive, scenario, policy, args.seed + i, args.max_steps)
-                    for i in range(args.replicates)]
+            runs = [run(archive, scenario, policy, args.seed + i, args.max_steps,
+                        args.adapt_on_start) for i in range(args.replicates)]
             ok = sum(r[0] for r in runs)
             steps = statistics.median(r[1] for r in runs)
             detections = np.mean([r[2] for r in runs])

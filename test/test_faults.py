@@ -295,3 +295,58 @@ def test_archive_built_for_another_simulator_is_refused_with_the_reason(graph):
                       'the mismatch reported again with the second goal')
     assert not commands and not diag.steps  # nothing sent on a map of another simulator
     assert all(nodes.alive().values()), nodes.logs()
+
+
+def test_a_step_is_announced_only_once_saved_and_a_failed_save_is_an_error(tmp_path):
+    # Learning from the first step: every step adds an observation to the state file.
+    nodes = NodeProcesses({'sela_adapter': {'adapt_on_start': True}})
+    client = Client()
+    try:
+        diag = Diagnostics(client)
+        on_disk = []
+
+        def check(msg):  # at the moment a step is announced, it is on disk already
+            for status in msg.status:
+                values = conv.status_values(status)
+                if status.name == ifc.MISSION_STATUS and 'step' in values:
+                    on_disk.append((int(values['observations']),
+                                    len(_observations(nodes.state_file)[0]), values['saved']))
+        ifc.subscription(client.node, ifc.DIAGNOSTICS, check)
+        diag.go_to_pose(0.8, 0.0)
+        client.spin_until(diag.get_result, 300, 'the end of the mission')
+        assert on_disk and all(saved >= announced and flag == 'True'
+                               for announced, saved, flag in on_disk), on_disk
+        # The archive in use set again keeps what was learned; another one is refused
+        # while anything is learned (its observations index the old archive's gaits).
+        from sela_ros.core.archive import default_archive_path
+
+        learned = _observations(nodes.state_file)
+        r = _set(client, 'sela_adapter', 'archive', '', ParameterType.PARAMETER_STRING)
+        assert r.successful, r.reason
+        copy = tmp_path / 'another.npz'
+        copy.write_bytes(default_archive_path().read_bytes())
+        r = _set(client, 'sela_adapter', 'archive', str(copy), ParameterType.PARAMETER_STRING)
+        assert not r.successful and 'clear first' in r.reason, r.reason
+        assert _observations(nodes.state_file) == learned
+        answer = client.call(ifc.client(client.node, ifc.ADAPT), Trigger.Request())
+        assert answer.success  # still serving, still the same learning
+    finally:
+        client.close()
+        nodes.stop()
+    # A state file that cannot be written (its folder is a file): every step says so.
+    blocker = tmp_path / 'not_a_folder'
+    blocker.write_text('')
+    nodes = NodeProcesses({'sela_adapter': {'adapt_on_start': True,
+                                            'state_file': str(blocker / 'state.json')}})
+    client = Client()
+    try:
+        diag = Diagnostics(client)
+        diag.go_to_pose(0.5, 0.0)
+        client.spin_until(lambda: diag.steps and any(
+            'could not save the learned state' in e for e in diag.errors('sela_adapter')),
+            300, 'the failed save reported')
+        assert diag.steps[0].values['saved'] == 'False'
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()

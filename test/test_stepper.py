@@ -414,3 +414,46 @@ def test_a_mission_comes_back_with_its_remaining_goals_after_a_restart():
     back.stepper.restore(snapshot, 0.0)
     assert [g.tolist() for g in back.stepper.goals_left] == [[2.0, 2.0]]
     assert back.stepper.goal_count == 2 and back.stepper.goal_index == 1
+
+
+def test_an_implausible_outcome_is_refused_not_learnt_and_the_command_is_sent_again():
+    d = Driver(adapt_on_start=True, outcome_timeout=5.0)
+    gait = only(d.plan(d.start()), SendGait)
+    out = d(OutcomeReceived(gait.behavior_id, (1e9, 0.0, 0.0), (1e9, 0.0, 0.0)), dt=3.0)
+    report = only(out, Report)
+    assert report.level is Level.ERROR and 'refused, not learnt' in report.message
+    assert 'outcome.max_displacement 2 m' in report.message
+    assert d.state is State.EXECUTING and not len(d.stepper.sela.observations[0])
+    assert d.stepper.current_pose()[0] == 0.0  # never a pose to start from
+    again = only(d(Tick(), dt=3.0), SendGait)
+    assert again.resend and again.behavior_id == gait.behavior_id
+
+
+def test_a_step_is_saved_before_it_is_announced():
+    d = Driver(adapt_on_start=True)
+    out = d.outcome(only(d.plan(d.start()), SendGait))
+    kinds = [type(c) for c in out]
+    assert kinds.index(SaveState) < kinds.index(PublishReward) < kinds.index(PublishStatus)
+    assert only(out, SaveState).snapshot['sela']['indices'] == [
+        int(d.stepper.pending.decision.index)]
+
+
+@pytest.mark.parametrize('policy, same_gait_elsewhere, kept', [
+    ('evidence', False, True), ('evidence', True, False), ('keep', True, True),
+    ('reset', False, False)])
+def test_a_new_detection_while_adapting_keeps_what_was_learned_unless_the_evidence_says(
+        policy, same_gait_elsewhere, kept):
+    from sela_ros.core.learning import MissionLogic
+
+    logic = MissionLogic(_sela(), adapt_on_start=True, on_detection=policy)
+    pose = np.zeros(3)
+    decisions = [logic.decide(pose, np.array([0.3, 0.0])) for _ in range(3)]
+    for d in decisions:
+        logic.outcome(d, pose, [0.2, 0.0, 0.0])
+    if same_gait_elsewhere:  # the gait learnt first now lands 0.5 m away: the robot changed
+        logic.outcome(decisions[0], pose, [-0.3, 0.0, 0.0])
+    else:
+        logic.outcome(logic.decide(pose, np.array([0.0, 0.3])), pose, [0.0, 0.1, 0.0])
+    learned = len(logic.sela.observations[0])
+    assert logic.adapt() is kept
+    assert len(logic.sela.observations[0]) == (learned if kept else 1)
