@@ -20,11 +20,13 @@ class StateError(ValueError):
     """A state file that cannot be used (corrupt, or for another archive)."""
 
 
-def atomic_write(path, write):
+def atomic_write(path, write, sync=True):
     """Call ``write(binary_handle)`` on a temporary file beside ``path``, fsync, rename over.
 
     The file gets the usual permissions (``mkstemp`` makes 0600), and the directory entry
-    is fsync'ed too, so the rename itself survives a power cut.
+    is fsync'ed too, so the rename itself survives a power cut. With ``sync=False`` there is
+    no fsync: the rename still makes the new file appear whole or not at all to any process
+    (a SIGKILL cannot leave half of it), but a power cut may bring back the previous one.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -34,7 +36,8 @@ def atomic_write(path, write):
         with os.fdopen(fd, 'wb') as handle:
             write(handle)
             handle.flush()
-            os.fsync(handle.fileno())
+            if sync:
+                os.fsync(handle.fileno())
         os.replace(tmp_name, path)
     except BaseException:
         try:
@@ -42,6 +45,8 @@ def atomic_write(path, write):
         except FileNotFoundError:
             pass
         raise
+    if not sync:
+        return
     dir_fd = os.open(path.parent, os.O_RDONLY)
     try:
         os.fsync(dir_fd)
@@ -59,8 +64,9 @@ def atomic_write_bytes(path, data):
     atomic_write(path, lambda handle: handle.write(data))
 
 
-def atomic_write_json(path, obj):
-    atomic_write_bytes(path, json.dumps(obj, indent=1, allow_nan=False).encode())
+def atomic_write_json(path, obj, sync=True):
+    data = json.dumps(obj, indent=1, allow_nan=False).encode()
+    atomic_write(path, lambda handle: handle.write(data), sync=sync)
 
 
 def default_state_file():
@@ -219,12 +225,14 @@ class StateStore:
         self._out = deque()  # (items, error) ready for the caller
         self.failures = 0
 
-    def save(self, state):
-        """Queue a snapshot (taken by the caller, not touched afterwards) for writing."""
+    def save(self, state, sync=True):
+        """Queue a snapshot (taken by the caller, not touched afterwards) for writing
+        (``sync=False``: safe against a crash of this process, not a power cut; about 1 ms
+        instead of 25 here)."""
         with self._lock:
             self._submitted += 1
             number = self._submitted
-        self._writer.submit(self._write, number, state)
+        self._writer.submit(self._write, number, state, sync)
 
     def after_saves(self, item):
         """Release ``item`` once every save queued so far has landed (at once if none)."""
@@ -256,10 +264,10 @@ class StateStore:
     def close(self):
         self._writer.shutdown(wait=True)
 
-    def _write(self, number, state):
+    def _write(self, number, state, sync=True):
         error = None
         try:
-            atomic_write_json(self.path, state)
+            atomic_write_json(self.path, state, sync=sync)
         except (OSError, ValueError, TypeError) as exc:
             error = f'could not save the learned state to {self.path}: {exc}'
         with self._lock:

@@ -372,8 +372,10 @@ class MissionStepper:
         p.deadline = now + self.config.outcome_timeout
         self.state = State.EXECUTING
         d = p.decision
-        return [SendGait(p.behavior_id, int(d.index), d.predicted_gr,
-                         self.logic.prediction_sigma(d)), self._save()]
+        # Write-ahead: the gait in flight is recorded before it is sent, so that a restarted
+        # adapter knows it and waits for its (latched) outcome instead of losing it.
+        return [self._save(), SendGait(p.behavior_id, int(d.index), d.predicted_gr,
+                                       self.logic.prediction_sigma(d))]
 
     def _next_goal(self, pose):
         """A goal of the mission is reached: on to the next, with all that was learned."""
