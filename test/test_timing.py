@@ -35,6 +35,7 @@ def _mission(early_goal):
             nodes.stop()
 
 
+@pytest.mark.timeout(1500)  # two missions, one of them on a machine kept busy on purpose
 def test_same_seed_same_gaits_under_cpu_load_and_with_an_early_goal():
     reference = _mission(early_goal=False)
     busy = [subprocess.Popen([sys.executable, '-c', 'while 1: pass']) for _ in range(2)]
