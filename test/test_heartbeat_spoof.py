@@ -51,15 +51,16 @@ def test_faked_heartbeats_do_not_hide_a_missing_or_killed_node():
             client.spin_until(check, timeout, what)
 
         # The adapter never started: faking its heartbeat does not make it alive.
-        spoof_until(lambda: errors('sela_adapter silent'), 60, 'sela_adapter reported silent',
+        spoof_until(lambda: errors('sela_adapter silent'), 120, 'sela_adapter reported silent',
                     'sela_adapter', 'sim_bridge')
         assert errors('heartbeat of sela_adapter sent by another process')
         # The planner is killed while its heartbeat is faked: reported silent once the graph
         # no longer shows it (the DDS lease), whatever the fakes say.
-        spoof_until(lambda: node.count_publishers(ifc.DIAGNOSTICS.root_name) >= 3, 60,
-                    'the planner and the detector in the graph', 'sela_adapter', 'sim_bridge')
+        spoof_until(lambda: {'planner', 'damage_detector'} <= {
+            i.node_name for i in node.get_publishers_info_by_topic(ifc.DIAGNOSTICS.root_name)},
+            120, 'the planner and the detector in the graph', 'sela_adapter', 'sim_bridge')
         nodes.kill('planner', signal.SIGKILL)
-        spoof_until(lambda: errors('planner silent'), 90, 'the killed planner reported silent',
+        spoof_until(lambda: errors('planner silent'), 150, 'the killed planner reported silent',
                     'planner', 'sela_adapter', 'sim_bridge')
         assert nodes.alive() == {'damage_detector': True}, nodes.logs()
     finally:
