@@ -286,19 +286,23 @@ def test_outcomes_of_other_commands_are_ignored():
     assert d.state is State.EXECUTING and d.stepper.pending.behavior_id == gait.behavior_id
 
 
-def test_odometry_newer_than_the_outcome_and_far_from_it_replaces_the_pose():
+def test_odometry_replaces_the_pose_between_missions_and_after_a_simulator_restart():
     d = Driver()
-    gait = only(d.plan(d.start()), SendGait)
+    gait = only(d.plan(d.start(goal=(0.25, 0.0))), SendGait)
     d.outcome(gait, stamp=3.0)
+    d(VerdictReceived(gait.behavior_id, False))
+    assert d.state is State.DONE
     assert d(PoseObserved((0.1, 0.0, 0.0), stamp=2.0)) == []  # older (mid-gait): ignored
     assert d(PoseObserved((0.21, 0.0, 0.0), stamp=3.0)) == []  # the same place: noise
-    out = d(PoseObserved((0.8, 0.5, 0.0), stamp=3.0))
+    out = d(PoseObserved((0.8, 0.5, 0.0), stamp=3.0))  # moved between missions
     assert 'starts from odometry' in only(out, Report).message
-    request = only(d(VerdictReceived(gait.behavior_id, False)), RequestPlan)
+    request = only(d(GoalReceived((2.0, 0.5))), RequestPlan)
     assert np.allclose(request.start[:2], (0.8, 0.5))  # not from the stale outcome pose
-    # A simulator restarted (its clock went back): its odometry is the truth again.
+    # Within a mission odometry does not override the observed pose (as in process)...
     gait = only(d.plan(request), SendGait)
     d.outcome(gait, stamp=6.0)
+    assert d(PoseObserved((1.5, 1.5, 0.0), stamp=6.0)) == []
+    # ... unless the simulator restarted (its clock went back): then it is the truth.
     d(PoseObserved((0.0, 0.0, 0.0), stamp=0.5))
     request = only(d(VerdictReceived(gait.behavior_id, False)), RequestPlan)
     assert np.allclose(request.start, 0.0)

@@ -19,6 +19,11 @@ def wrap_angle(angle):
     return np.where(wrapped == -math.pi, math.pi, wrapped)
 
 
+def planar_distance(a, b):
+    """Distance between the (x, y) of two poses."""
+    return float(math.hypot(a[0] - b[0], a[1] - b[1]))
+
+
 def yaw_to_quaternion(yaw):
     """``(x, y, z, w)`` of a rotation by ``yaw`` about +z."""
     return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)

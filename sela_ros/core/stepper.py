@@ -15,7 +15,8 @@ because both are this code.
 
 The pose a step starts from is the robot's current one: the end pose of the latest outcome,
 or odometry when there is none (start, after a reset or a restart), or when odometry at
-least as new as that outcome puts the robot more than ``pose_tolerance`` away from it.
+least as new as that outcome puts the robot more than ``pose_tolerance`` away from it
+between missions or after the simulator restarted (its clock went back).
 A goal is reached when that pose is within ``goal.eps`` of it.
 """
 import math
@@ -23,6 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from sela_ros.core.geometry import planar_distance
 from sela_ros.core.learning import MissionLogic
 from sela_ros.core.mission_state import mission_snapshot, restore_mission
 from sela_ros.core.mission_status import detection_status, goal_status, mission_status
@@ -157,13 +159,17 @@ class MissionStepper:
         self.odom, self.odom_stamp = pose, event.stamp
         if self.resume is not None and self.state is not State.EXECUTING:
             return self._check_resume(pose)
+        # Within a mission steps start from the outcome's observed pose, as in process; between
+        # missions, or once the simulator restarted, odometry putting the robot elsewhere wins.
         moved = (self.pose is not None and event.stamp is not None
                  and self.pose_stamp is not None and event.stamp >= self.pose_stamp
-                 and self.state in (State.READY, State.VERDICT, State.IDLE, State.DONE)
-                 and _distance(pose, self.pose) > self.config.pose_tolerance)
+                 and (self.state in (State.IDLE, State.DONE) or (
+                     self.pose_stamp == -math.inf
+                     and self.state in (State.READY, State.VERDICT, State.PLANNING)))
+                 and planar_distance(pose, self.pose) > self.config.pose_tolerance)
         if not moved:
             return []
-        distance = _distance(pose, self.pose)
+        distance = planar_distance(pose, self.pose)
         self.pose = None
         return [Report(Level.WARN, f'odometry puts the robot {distance:.2f} m from its '
                        'last observed pose: the next step starts from odometry')]
@@ -302,7 +308,7 @@ class MissionStepper:
             self._plan = None
             return [Report(Level.ERROR, 'planner did not answer; retrying')]
         if self.state is State.EXECUTING and now > p.deadline:
-            if self.resume is not None and self.odom is not None and _distance(
+            if self.resume is not None and self.odom is not None and planar_distance(
                     self.odom, p.pose) > self.config.pose_tolerance:
                 return self._drop_mission(self.odom, p.pose)
             p.deadline = now + self.config.outcome_timeout
@@ -402,7 +408,7 @@ class MissionStepper:
 
     def _drop_mission(self, pose, saved):
         message = (f'mission to ({self.goal[0]:.2f}, {self.goal[1]:.2f}) dropped: the robot is '
-                   f'{_distance(pose, saved):.2f} m from where the state file puts it '
+                   f'{planar_distance(pose, saved):.2f} m from where the state file puts it '
                    f'(tolerance {self.config.pose_tolerance} m); send the goal again')
         self.resume = self.pending = None
         self.state = State.IDLE
@@ -411,12 +417,12 @@ class MissionStepper:
 
     def _check_resume(self, pose):
         saved = self.resume
-        if _distance(pose, saved) > self.config.pose_tolerance:
+        if planar_distance(pose, saved) > self.config.pose_tolerance:
             return self._drop_mission(pose, saved)
         self.resume = None
         self.pose = None  # plan from where the robot is
         return [Report(Level.WARN, f'mission resumed at step {self.steps}: the robot is '
-                       f'{_distance(pose, saved):.3f} m from where the state file puts it')]
+                       f'{planar_distance(pose, saved):.3f} m from where the state file puts it')]
 
     # --- status and persistence ----------------------------------------------------------
 
@@ -435,7 +441,3 @@ class MissionStepper:
         """Take back a :meth:`snapshot` (see :func:`~sela_ros.core.mission_state.
         restore_mission`); returns the commands (reports) it gives."""
         return restore_mission(self, snapshot, now)
-
-
-def _distance(a, b):
-    return float(np.hypot(a[0] - b[0], a[1] - b[1]))
