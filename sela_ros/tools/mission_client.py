@@ -142,16 +142,17 @@ class MissionClient:
                 raise TimeoutError(f'timed out after {timeout} s waiting for {what}')
             self.spin_once(0.05)
 
-    def wait_until_ready(self, timeout=60.0, publisher=None):
+    def wait_until_ready(self, timeout=60.0, publisher=None, nodes=ifc.NODES):
         """Wait until the adapter hears goals (on ``publisher``'s topic; default goal_pose)
-        and this client hears the adapter."""
+        and this client hears ``nodes`` (their statuses on ``diagnostics``: what one says
+        before it is heard would be lost)."""
         publisher = publisher or self._goal_pub
+        topic = self.node.resolve_topic_name(self.name(ifc.DIAGNOSTICS.name))
 
         def ready():
-            talkers = {i.node_name for i in self.node.get_publishers_info_by_topic(
-                self.node.resolve_topic_name(self.name(ifc.DIAGNOSTICS.name)))}
-            return ifc.SELA_ADAPTER in talkers and publisher.get_subscription_count() > 0
-        self.spin_until(ready, timeout, 'the sela_adapter')
+            talkers = {i.node_name for i in self.node.get_publishers_info_by_topic(topic)}
+            return set(nodes) <= talkers and publisher.get_subscription_count() > 0
+        self.spin_until(ready, timeout, f"{', '.join(nodes)} on {topic}")
 
     def wait_for_goal_listeners(self, count, timeout=60.0):
         """Wait until ``count`` nodes hear goals (e.g. the planner and the adapter)."""
