@@ -28,7 +28,12 @@ from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from sela_ros.core import N_PARAMS, geometry
-from sela_ros.core.stepper_io import OutcomeReceived
+from sela_ros.core.stepper_io import (
+    GoalReceived,
+    OutcomeReceived,
+    PoseObserved,
+    VerdictReceived,
+)
 from sela_ros.core.validation import finite_array
 
 BEHAVIOR_ID_PREFIX = 'behavior_id='
@@ -178,6 +183,18 @@ def outcome_event(msg):
     o = outcome_from_msg(msg)
     return OutcomeReceived(o.behavior_id, tuple(o.generic_reward), tuple(o.end_pose),
                            o.fallen, o.sim_time)
+
+
+def verdict_event(msg):
+    return VerdictReceived(*verdict_from_msg(msg))
+
+
+def odometry_event(msg):
+    return PoseObserved(tuple(pose_from_odometry(msg)), time_from_msg(msg.header.stamp))
+
+
+def goal_event(msg, expected_frame='odom'):
+    return GoalReceived(tuple(goal_from_pose_stamped(msg, expected_frame)))
 
 
 def prediction_to_msg(behavior_id, generic_reward, sigma=0.0):
