@@ -7,8 +7,9 @@ always, a mission in progress only if the robot turns out to be where it was.
 """
 import numpy as np
 
+from sela_ros.core.geometry import planar_distance
 from sela_ros.core.sela import Decision
-from sela_ros.core.stepper_io import Level, PendingStep, Report, State
+from sela_ros.core.stepper_io import Level, PendingStep, Report, SaveState, State
 
 
 def mission_snapshot(stepper):
@@ -92,3 +93,26 @@ def restore_mission(stepper, snapshot, now):
 
 def _list(values):
     return np.asarray(values, dtype=float).tolist()
+
+
+def drop_mission(stepper, pose, saved):
+    """The robot is not where the state file puts it: the mission is dropped (what was
+    learned stays)."""
+    message = (f'mission to ({stepper.goal[0]:.2f}, {stepper.goal[1]:.2f}) dropped: the robot '
+               f'is {planar_distance(pose, saved):.2f} m from where the state file puts it '
+               f'(tolerance {stepper.config.pose_tolerance} m); send the goal again')
+    stepper.resume = stepper.pending = None
+    stepper.state = State.IDLE
+    stepper.reset_needed = False
+    return [Report(Level.ERROR, message), SaveState(mission_snapshot(stepper))]
+
+
+def check_resume(stepper, pose):
+    """The first odometry after a restore: go on from there, or drop the mission."""
+    saved = stepper.resume
+    if planar_distance(pose, saved) > stepper.config.pose_tolerance:
+        return drop_mission(stepper, pose, saved)
+    stepper.resume = None
+    stepper.pose = None  # plan from where the robot is
+    return [Report(Level.WARN, f'mission resumed at step {stepper.steps}: the robot is '
+                   f'{planar_distance(pose, saved):.3f} m from where the state file puts it')]

@@ -1,59 +1,45 @@
 """The mission's step cycle as plain Python: events in, commands out. ROS-free.
 
-One step: plan (the reward selection layer gives the waypoint) -> ask (SELA picks a gait)
--> command (the gait and its prediction go out) -> outcome (its observed generic reward
-comes back; learnt while adapting) -> verdict (the damage detector judges it; a detection
-starts adaptation, or restarts it from scratch) -> the next step. Falls, resets, time-outs,
-early or late adaptation requests and resuming after a restart are part of the cycle.
-
-:class:`MissionStepper` never waits and never reads a clock: its driver passes the time
-with each event (:meth:`MissionStepper.handle`) and carries out the commands it returns
-(events and commands: :mod:`sela_ros.core.stepper_io`). The ``sela_adapter`` node drives it
-from DDS messages, :func:`sela_ros.core.mission.run_mission` in process against the
-simulator, the tests with a fake clock: the DDS mission takes the in-process mission's gaits
-because both are this code.
-
-The pose a step starts from is the robot's current one: the end pose of the latest outcome,
-or odometry when there is none (start, after a reset or a restart), or when odometry at
-least as new as that outcome puts the robot more than ``pose_tolerance`` away from it
-between missions or after the simulator restarted (its clock went back).
-A goal is reached when that pose is within ``goal.eps`` of it.
+One step: plan (the waypoint) -> ask (SELA picks a gait) -> command (gait and prediction
+out) -> outcome (learnt while adapting) -> verdict (a detection starts or restarts
+adaptation) -> the next step; falls, resets, time-outs, early or late adaptation requests and
+resuming after a restart are part of it. :class:`MissionStepper` never waits and never reads
+a clock: its driver (the ``sela_adapter`` node, :func:`sela_ros.core.mission.run_mission`, a
+test) passes the time with each event and carries out the commands it returns (see
+:mod:`sela_ros.core.stepper_io`), so the DDS mission takes the in-process mission's gaits.
+Steps start from the latest outcome's observed pose, or from odometry when there is none
+(start, reset, restart), between missions, or after the simulator restarted.
 """
 import math
 from dataclasses import replace
 
 import numpy as np
 
+from sela_ros.core import stepper_io as io
 from sela_ros.core.geometry import planar_distance
 from sela_ros.core.learning import MissionLogic
-from sela_ros.core.mission_state import mission_snapshot, restore_mission
+from sela_ros.core.mission_state import (
+    check_resume,
+    drop_mission,
+    mission_snapshot,
+    restore_mission,
+)
 from sela_ros.core.mission_status import detection_status, goal_status, mission_status
 from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
 from sela_ros.core.stepper_io import (
-    AdaptRequested,
     AskedPlan,
-    ClearRequested,
-    GoalReceived,
-    GoalsReceived,
-    HoldChanged,
     Level,
-    OutcomeReceived,
     PendingStep,
-    PlanReceived,
-    PoseObserved,
     PublishReward,
     PublishStatus,
     Reply,
     Report,
     RequestPlan,
     RequestReset,
-    ResetDone,
     SaveState,
     SendGait,
     State,
     StepperConfig,
-    Tick,
-    VerdictReceived,
 )
 
 
@@ -61,7 +47,7 @@ class MissionStepper:
     """The step cycle of one robot: feed it events, carry out the commands it returns.
 
     Args:
-        sela: the SELA learner (its goal is set by :class:`GoalReceived`).
+        sela: the SELA learner (its goal is set by a ``GoalReceived`` event).
         config: :class:`StepperConfig`.
     """
 
@@ -89,12 +75,12 @@ class MissionStepper:
         self.last_id = None  # id of the latest outcome processed
         self._deadline = None  # of the reset
         self._handlers = {
-            GoalReceived: self._on_goal, GoalsReceived: self._on_goals,
-            PoseObserved: self._on_pose,
-            PlanReceived: self._on_plan, OutcomeReceived: self._on_outcome,
-            VerdictReceived: self._on_verdict, AdaptRequested: self._on_adapt,
-            ClearRequested: self._on_clear, ResetDone: self._on_reset_done,
-            HoldChanged: self._on_hold, Tick: self._on_tick}
+            io.GoalReceived: self._on_goal, io.GoalsReceived: self._on_goals,
+            io.PoseObserved: self._on_pose, io.PlanReceived: self._on_plan,
+            io.OutcomeReceived: self._on_outcome, io.VerdictReceived: self._on_verdict,
+            io.AdaptRequested: self._on_adapt, io.ClearRequested: self._on_clear,
+            io.ResetDone: self._on_reset_done, io.HoldChanged: self._on_hold,
+            io.Tick: self._on_tick}
 
     @property
     def sela(self):
@@ -158,7 +144,7 @@ class MissionStepper:
             self.pose_stamp = -math.inf  # the simulator's clock went back: it restarted
         self.odom, self.odom_stamp = pose, event.stamp
         if self.resume is not None and self.state is not State.EXECUTING:
-            return self._check_resume(pose)
+            return check_resume(self, pose)
         # Within a mission steps start from the outcome's observed pose, as in process; between
         # missions, or once the simulator restarted, odometry putting the robot elsewhere wins.
         moved = (self.pose is not None and event.stamp is not None
@@ -246,7 +232,7 @@ class MissionStepper:
         if event.behavior_id == self.last_id and event.fire:
             # Late: the step went on without it. Adapt as an early call would.
             self.last_id = None
-            out = self._on_adapt(AdaptRequested(), now)
+            out = self._on_adapt(io.AdaptRequested(), now)
             return out[:-1] + [detection_status(self, event, out[-1].message)]
         return []  # judged already, or an older command (a restarted detector's replay)
 
@@ -310,7 +296,7 @@ class MissionStepper:
         if self.state is State.EXECUTING and now > p.deadline:
             if self.resume is not None and self.odom is not None and planar_distance(
                     self.odom, p.pose) > self.config.pose_tolerance:
-                return self._drop_mission(self.odom, p.pose)
+                return drop_mission(self, self.odom, p.pose)
             p.deadline = now + self.config.outcome_timeout
             return [Report(Level.ERROR, f'no outcome for command {p.behavior_id} within '
                            f'{self.config.outcome_timeout} s; sending it again'),
@@ -405,24 +391,6 @@ class MissionStepper:
                        f'({pose[0]:.2f}, {pose[1]:.2f})'),
                 PublishStatus(Level.OK if success else Level.ERROR, message, self.status()),
                 self._save()]
-
-    def _drop_mission(self, pose, saved):
-        message = (f'mission to ({self.goal[0]:.2f}, {self.goal[1]:.2f}) dropped: the robot is '
-                   f'{planar_distance(pose, saved):.2f} m from where the state file puts it '
-                   f'(tolerance {self.config.pose_tolerance} m); send the goal again')
-        self.resume = self.pending = None
-        self.state = State.IDLE
-        self.reset_needed = False
-        return [Report(Level.ERROR, message), self._save()]
-
-    def _check_resume(self, pose):
-        saved = self.resume
-        if planar_distance(pose, saved) > self.config.pose_tolerance:
-            return self._drop_mission(pose, saved)
-        self.resume = None
-        self.pose = None  # plan from where the robot is
-        return [Report(Level.WARN, f'mission resumed at step {self.steps}: the robot is '
-                       f'{planar_distance(pose, saved):.3f} m from where the state file puts it')]
 
     # --- status and persistence ----------------------------------------------------------
 

@@ -30,6 +30,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from sela_ros.core import N_PARAMS, geometry
 from sela_ros.core.stepper_io import (
     GoalReceived,
+    GoalsReceived,
     OutcomeReceived,
     PoseObserved,
     VerdictReceived,
@@ -195,6 +196,10 @@ def odometry_event(msg):
 
 def goal_event(msg, expected_frame='odom'):
     return GoalReceived(tuple(goal_from_pose_stamped(msg, expected_frame)))
+
+
+def goals_event(msg, expected_frame='odom'):
+    return GoalsReceived(tuple(goals_from_path(msg, expected_frame)))
 
 
 def prediction_to_msg(behavior_id, generic_reward, sigma=0.0):
