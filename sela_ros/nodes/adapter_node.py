@@ -60,15 +60,12 @@ class SelaAdapter(Node):
             ('reward', ifc.REWARD), ('diagnostics', ifc.DIAGNOSTICS))}
         # Each input message becomes one stepper event; a malformed one is logged, dropped.
         for topic, what, event in (
-                (ifc.GOAL, 'goal rejected', lambda m: io.GoalReceived(
-                    tuple(conv.goal_from_pose_stamped(m, self.frame_id)))),
-                (ifc.GOAL_PATH, 'goal path rejected', lambda m: io.GoalsReceived(
-                    tuple(conv.goals_from_path(m, self.frame_id)))),
-                (ifc.ODOM, 'ignored odometry', lambda m: io.PoseObserved(
-                    tuple(conv.pose_from_odometry(m)), conv.time_from_msg(m.header.stamp))),
+                (ifc.GOAL, 'goal rejected', lambda m: conv.goal_event(m, self.frame_id)),
+                (ifc.GOAL_PATH, 'goal path rejected',
+                 lambda m: conv.goals_event(m, self.frame_id)),
+                (ifc.ODOM, 'ignored odometry', conv.odometry_event),
                 (ifc.OUTCOME, 'ignored outcome', conv.outcome_event),
-                (ifc.VERDICT, 'ignored verdict',
-                 lambda m: io.VerdictReceived(*conv.verdict_from_msg(m)))):
+                (ifc.VERDICT, 'ignored verdict', conv.verdict_event)):
             ifc.subscription(self, topic, lambda m, e=event, w=what: self._translate(m, e, w))
         self.plan_client = ifc.client(self, ifc.MAKE_PLAN)
         self.reset_client = ifc.client(self, ifc.RESET)
