@@ -35,11 +35,29 @@ def test_demo_reaches_goal_and_writes_summary_plot_and_mcap(tmp_path, ros_env):
             if channel.topic == '/hexapod/odom':
                 assert decoded.header.frame_id == 'odom'
                 assert decoded.child_frame_id == 'base_link'
+            elif channel.topic == '/tf':
+                (tf,) = decoded.transforms
+                assert (tf.header.frame_id, tf.child_frame_id) == ('odom', 'base_link')
+            elif channel.topic == '/robot_description':
+                assert '<robot name="sela_hexapod">' in decoded.data
+                assert 'middle_right.coxa' not in decoded.data  # the demo's damage
     for topic in ('/hexapod/behavior', '/hexapod/behavior_outcome', '/sela/reward'):
         assert counts.get(topic) == summary['steps'], (topic, counts)
     for topic in ('/clock', '/hexapod/odom', '/goal_pose', '/planner/path', '/sela/target',
-                  '/diagnostics', '/planner/map', '/hexapod/joint_states'):
+                  '/diagnostics', '/planner/map', '/hexapod/joint_states', '/tf',
+                  '/robot_description'):
         assert counts.get(topic, 0) > 0, (topic, counts)
+    # SELA's markers: one decision and one outcome per step, drawn back from the recording.
+    from sela_ros.tools.mcap_figure import draw, read_recording
+
+    recording = read_recording(str(out / 'mission.mcap'))
+    assert counts.get('/sela/markers') == 2 * summary['steps'], counts
+    assert len(recording['steps']) == summary['steps']
+    for step, detail in zip(recording['steps'], summary['steps_detail']):
+        waypoint = [float(v) for v in detail['waypoint'].split()][:2]
+        assert step['waypoint'] == pytest.approx(waypoint, abs=1e-3)
+        assert len(step['candidates']) == 5 and step['observed'] is not None
+    assert draw(recording, tmp_path / 'markers.png').stat().st_size > 10_000
 
 
 def test_demo_rejects_bad_arguments_with_usage(ros_env):

@@ -42,7 +42,7 @@ def test_mcap_holds_tf_description_and_markers_and_draws_them(tmp_path):
     from geometry_msgs.msg import TransformStamped
     from tf2_msgs.msg import TFMessage
 
-    from sela_ros.nodes.qos import LATCHED_QOS
+    from sela_ros.nodes.interface import LATCHED_QOS
     from sela_ros.tools.mcap_figure import draw, read_recording
     from sela_ros.tools.recording import McapRecorder
 

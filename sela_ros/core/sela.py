@@ -120,6 +120,25 @@ class Decision:
     sigma: float   # posterior standard deviation of the chosen behaviour
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     fall_risk: float = 0.0  # predicted risk that the chosen behaviour tips the robot over
+    # The best behaviours by UCB, the chosen one first: rows (x, y, sigma, ucb) with (x, y)
+    # where each is predicted to land. For observers (RViz markers), not for the choice.
+    candidates: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+
+
+#: How many candidates a :class:`Decision` reports.
+CANDIDATES_SHOWN = 5
+
+
+def top_candidates(index, x, y, sigma, scores, count=CANDIDATES_SHOWN):
+    """Rows ``(x, y, sigma, score)`` of ``index`` then the next best by ``scores``."""
+    scores = np.asarray(scores, dtype=float)
+    finite = np.flatnonzero(np.isfinite(scores))
+    if finite.size > count:
+        finite = finite[np.argpartition(-scores[finite], count)[:count]]
+    order = [index] + [int(i) for i in finite[np.argsort(-scores[finite], kind='stable')]
+                       if i != index]
+    order = order[:count]
+    return np.column_stack([x[order], y[order], sigma[order], scores[order]])
 
 
 class SELA:
@@ -244,7 +263,8 @@ class SELA:
         return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
                         predicted_pose=self.motion.predict(pose, gr),
                         reward=float(reward[index]), sigma=float(sigma[index]), path=path,
-                        fall_risk=float(risk[index]))
+                        fall_risk=float(risk[index]),
+                        candidates=top_candidates(index, x, y, sigma, scores))
 
     def tell(self, index: int, observed_gr) -> None:
         """Learn that behaviour ``index`` produced the generic reward ``observed_gr``."""

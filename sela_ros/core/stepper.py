@@ -367,7 +367,8 @@ class MissionStepper:
         # Write-ahead: the gait in flight is recorded before it is sent, so that a restarted
         # adapter knows it and waits for its (latched) outcome instead of losing it.
         return [self._save(), SendGait(p.behavior_id, int(d.index), d.predicted_gr,
-                                       self.logic.prediction_sigma(d))]
+                                       self.logic.prediction_sigma(d), pose=tuple(p.pose),
+                                       waypoint=tuple(p.waypoint), candidates=d.candidates)]
 
     def _next_goal(self, pose):
         """A goal of the mission is reached: on to the next, with all that was learned."""

@@ -113,6 +113,11 @@ class SendGait:
     predicted_gr: np.ndarray
     sigma: float  # how unsure the prediction is (0 while the map is trusted)
     resend: bool = False  # the same command again (its outcome never came)
+    # Why, for observers (markers): the pose it was chosen from, the waypoint, and the best
+    # candidates (rows x, y, sigma, ucb; the chosen first). None on a resend.
+    pose: tuple = None
+    waypoint: tuple = None
+    candidates: np.ndarray = None
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ from sela_ros.core.stepper import MissionStepper
 from sela_ros.nodes import adapter_params as params
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+from sela_ros.nodes import markers
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
@@ -57,7 +58,8 @@ class SelaAdapter(Node):
         self._deferred_plan = None  # a plan request waiting for the planner to come up
         self.pubs = {kind: ifc.publisher(self, topic) for kind, topic in (
             ('behavior', ifc.BEHAVIOR), ('prediction', ifc.PREDICTION),
-            ('reward', ifc.REWARD), ('diagnostics', ifc.DIAGNOSTICS))}
+            ('reward', ifc.REWARD), ('diagnostics', ifc.DIAGNOSTICS), ('markers', ifc.MARKERS))}
+        self._trail = deque(maxlen=500)  # where the robot ended each step (the markers' trail)
         # Each input message becomes one stepper event; a malformed one is logged, dropped.
         for topic, what, event in (
                 (ifc.GOAL, 'goal rejected', lambda m: conv.goal_event(m, self.frame_id)),
@@ -277,6 +279,8 @@ class SelaAdapter(Node):
                 else:
                     self._status(c.level, c.message, dict(
                         c.values, saved='False' if error else 'True'))
+                    if 'end_pose' in c.values and 'step' in c.values:
+                        self._outcome_markers(c.values['end_pose'])
 
     def _send_gait(self, c):
         self.pubs['behavior'].publish(conv.behavior_to_msg(self.archive.params[c.index],
@@ -284,6 +288,26 @@ class SelaAdapter(Node):
         if not c.resend:
             self.pubs['prediction'].publish(conv.prediction_to_msg(
                 c.behavior_id, c.predicted_gr, c.sigma))
+            self._decision_markers(c)
+
+    def _decision_markers(self, gait):
+        # What SELA thinks, for RViz/Foxglove: the waypoint, the best candidates by UCB
+        # (discs of 2 sigma where each is predicted to land), the chosen one.
+        if gait.candidates is None or not len(gait.candidates):
+            return
+        chosen = gait.candidates[0]
+        self.pubs['markers'].publish(markers.decision_markers(
+            self.frame_id, self.get_clock().now().to_msg(), gait.pose, gait.waypoint,
+            gait.candidates, chosen[:2], chosen[2]))
+
+    def _outcome_markers(self, end_pose_text):
+        try:
+            end = [float(v) for v in end_pose_text.split()[:2]]
+        except ValueError:
+            return
+        self._trail.append(end)
+        self.pubs['markers'].publish(markers.outcome_markers(
+            self.frame_id, self.get_clock().now().to_msg(), end, list(self._trail)))
 
     def _request_plan(self, command):
         if not self.plan_client.service_is_ready():

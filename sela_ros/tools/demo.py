@@ -142,7 +142,9 @@ def run_client(args, damage, out, procs):
 
     recorded = (ifc.CLOCK, ifc.ODOM, ifc.JOINT_STATES, ifc.BEHAVIOR, ifc.OUTCOME,
                 ifc.PREDICTION, ifc.REWARD, ifc.TARGET, ifc.GOAL, ifc.PATH, ifc.MAP,
-                ifc.DIAGNOSTICS, ifc.VERDICT)
+                ifc.DIAGNOSTICS, ifc.VERDICT, ifc.ROBOT_DESCRIPTION, ifc.MARKERS)
+    if ifc.TF.type is not None:  # Foxglove draws the robot moving from /tf
+        recorded += (ifc.TF,)
     rclpy.init()
     node = Node('sela_demo')
     trajectory = []

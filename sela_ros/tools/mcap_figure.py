@@ -56,43 +56,65 @@ def _add_markers(steps, markers):
             step['observed'] = (p.x, p.y)
 
 
-def draw(recording, out_path, title='SELA, as recorded'):
+def draw(recording, out_path, title='SELA, as recorded', focus=None):
+    """Two panels: the whole mission, and one step up close (``focus``, 1-based; default:
+    the step whose candidates the GPs are surest of), candidates as discs of 2 sigma."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 
-    fig, ax = plt.subplots(figsize=(7, 7))
+    steps = recording['steps']
+    if focus is None and steps:
+        focus = 1 + min(range(len(steps)), key=lambda i: sum(
+            c[2] for c in steps[i]['candidates']) or float('inf'))
+    fig, (whole, close) = plt.subplots(1, 2, figsize=(12, 6))
     if recording['tf']:
         _, xs, ys = zip(*recording['tf'])
-        ax.plot(xs, ys, color='0.3', lw=1.2, label='body (/tf odom -> base_link)')
-    for i, step in enumerate(recording['steps']):
+        whole.plot(xs, ys, color='0.3', lw=1.2, label='body (/tf odom -> base_link)')
+    for i, step in enumerate(steps):
+        first = i == 0
+        if step['candidates']:
+            cx, cy, _ = zip(*step['candidates'])
+            whole.plot(cx, cy, '.', color='tab:blue', ms=3, alpha=0.5,
+                       label='top candidates by UCB (predicted landing)' if first else None)
+        _draw_step(whole, step, first)
+    whole.set_title(f'{title}: {len(steps)} steps')
+    if focus:
+        step = steps[focus - 1]
         for x, y, diameter in step['candidates']:
-            ax.add_patch(Circle((x, y), diameter / 2, color='tab:blue', alpha=0.12, lw=0))
-        if 'chosen' in step:
-            (x0, y0), (x1, y1) = step['chosen']
-            ax.annotate('', (x1, y1), (x0, y0),
-                        arrowprops={'arrowstyle': '->', 'color': 'tab:orange', 'lw': 1.2})
-        if 'waypoint' in step:
-            ax.plot(*step['waypoint'], 'o', color='m', ms=4,
-                    label='waypoint' if i == 0 else None)
-        if step['observed'] is not None:
-            ax.plot(*step['observed'], 'o', color='tab:green', ms=4,
-                    label='observed end' if i == 0 else None)
-    ax.plot([], [], color='tab:orange', label='chosen gait (predicted)')
-    ax.add_patch(Circle((0, 0), 0, color='tab:blue', alpha=0.3,
-                        label='top candidates by UCB (2 sigma)'))
-    ax.set_aspect('equal')
-    ax.set_xlabel('x (m, odom)')
-    ax.set_ylabel('y (m, odom)')
-    ax.set_title(f'{title}: {len(recording["steps"])} steps')
-    ax.grid(alpha=0.3)
-    ax.legend(loc='best', fontsize=8)
+            close.add_patch(Circle((x, y), diameter / 2, color='tab:blue', alpha=0.15, lw=0))
+            close.add_patch(Circle((x, y), diameter / 2, fill=False, color='tab:blue', lw=0.8))
+            close.plot(x, y, '.', color='tab:blue', ms=5)
+        _draw_step(close, step, True)
+        close.plot([], [], color='tab:blue', label='candidate: disc of 2 sigma')
+        close.set_title(f'step {focus}: the candidates and their uncertainty')
+        close.autoscale_view()
+    for ax in (whole, close):
+        ax.set_aspect('equal', adjustable='datalim')
+        ax.set_xlabel('x (m, odom)')
+        ax.set_ylabel('y (m, odom)')
+        ax.grid(alpha=0.3)
+        ax.legend(loc='best', fontsize=8)
     fig.tight_layout()
-    fig.savefig(out_path, dpi=110)
+    fig.savefig(out_path, dpi=100)
     plt.close(fig)
     return out_path
+
+
+def _draw_step(ax, step, label):
+    if 'chosen' in step:
+        (x0, y0), (x1, y1) = step['chosen']
+        ax.annotate('', (x1, y1), (x0, y0),
+                    arrowprops={'arrowstyle': '->', 'color': 'tab:orange', 'lw': 1.4})
+        if label:
+            ax.plot([], [], color='tab:orange', label='chosen gait (predicted)')
+    if 'waypoint' in step:
+        ax.plot(*step['waypoint'], 'o', color='m', ms=5, label='waypoint' if label else None)
+    if step['observed'] is not None:
+        ax.plot(*step['observed'], 'o', color='tab:green', ms=5,
+                label='observed end' if label else None)
 
 
 def main(argv=None):
