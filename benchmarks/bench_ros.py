@@ -171,7 +171,7 @@ def overhead(args):
 
 
 def long_run(args):
-    config = yaml.safe_load(Path(CONFIG).read_text())['planner']['ros__parameters']
+    config = yaml.safe_load(Path(CONFIG).read_text())['/**/planner']['ros__parameters']
     # A goal in the middle of the map that can never be reached (goal.eps 1 mm): the robot
     # walks to it and keeps stepping around it without leaving the map.
     centre = [o + size / 2 for o, size in zip(config['map.origin'],

@@ -14,7 +14,9 @@ maze.yaml); a map published on ``map`` (by map_server) replaces the planner's. T
 command is in the README ("Send a goal").
 
 /tf and /tf_static are remapped to the namespace's ``tf``/``tf_static`` for
-robot_state_publisher and RViz (as nav2 does), so each robot has its own tree. The
+robot_state_publisher and RViz (as nav2 does), so each robot has its own tree, and /clock to
+the namespace's ``clock`` for every node (each robot has its own simulator, so its own
+time); in the root namespace these are the usual /tf, /tf_static and /clock. The
 simulator publishes ``robot_description`` with the current damage (a removed leg is
 absent); robot_state_publisher gets the intact model from share/sela_ros/urdf/ for the legs'
 transforms, and its own copy of the description is moved aside so that it does not replace
@@ -29,7 +31,10 @@ from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node, PushRosNamespace
 
-TF_REMAPS = [('/tf', 'tf'), ('/tf_static', 'tf_static')]
+# Each robot has its own simulator, so its own clock: /clock -> <namespace>/clock for every
+# node of the stack (the same /clock in the root namespace).
+CLOCK_REMAP = [('/clock', 'clock')]
+TF_REMAPS = [('/tf', 'tf'), ('/tf_static', 'tf_static')] + CLOCK_REMAP
 
 
 def generate_launch_description():
@@ -62,14 +67,16 @@ def generate_launch_description():
              parameters=[params, {'damage': LaunchConfiguration('damage'),
                                   'seed': LaunchConfiguration('seed'),
                                   'sim.gui': LaunchConfiguration('gui'),
-                                  'archive': LaunchConfiguration('archive')}]),
+                                  'archive': LaunchConfiguration('archive')}],
+             remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='planner', name='planner', output='screen',
-             parameters=[params, {'map.file': LaunchConfiguration('map')}]),
+             parameters=[params, {'map.file': LaunchConfiguration('map')}],
+             remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='damage_detector', name='damage_detector',
-             output='screen', parameters=[params]),
+             output='screen', parameters=[params], remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='sela_adapter', name='sela_adapter',
-             output='screen',
-             parameters=[params, {'archive': LaunchConfiguration('archive')}]),
+             output='screen', parameters=[params, {'archive': LaunchConfiguration('archive')}],
+             remappings=CLOCK_REMAP),
         Node(package='robot_state_publisher', executable='robot_state_publisher',
              name='robot_state_publisher', output='screen',
              parameters=[{'robot_description': urdf, 'use_sim_time': True}],

@@ -38,8 +38,8 @@ class NodeProcesses:
 
     def start(self, name):
         cmd = [str(executable(name)), '--ros-args', '--params-file', str(CONFIG)]
-        if self.namespace:
-            cmd += ['-r', f'__ns:={self.namespace}']
+        if self.namespace:  # as `ros2 launch ... namespace:=`: own names, own clock
+            cmd += ['-r', f'__ns:={self.namespace}', '-r', '/clock:=clock']
         for key, value in self.overrides.get(name, {}).items():
             cmd += ['-p', f'{key}:={value}']
         log = open(self.logdir / f'{name}.log', 'a')  # noqa: SIM115

@@ -70,6 +70,8 @@ def test_namespace_is_pushed_on_every_node(launch_description):
     assert type(push).__name__ == 'PushRosNamespace'
     assert push.args[0].args[0] == 'namespace'
     assert {id(n) for n in inside} == {id(n) for n in _nodes(launch_description)}
+    for node in inside:  # each robot its own simulator, so its own clock
+        assert ('/clock', 'clock') in node.kwargs['remappings'], node.kwargs['executable']
 
 
 def test_robot_state_publisher_and_optional_rviz_use_installed_files(launch_description):
@@ -99,9 +101,15 @@ def test_rviz_config_shows_the_robot_and_sets_goals_on_goal_pose():
     assert goal_tool['Topic']['Durability Policy'] == 'Volatile'
 
 
+def _config():
+    raw = yaml.safe_load((ROOT / 'config' / 'sela.yaml').read_text())
+    # /**/<node>: the node's parameters in any namespace (namespace:=/robot1).
+    assert set(raw) == {f'/**/{node}' for node in NODES}
+    return {key.removeprefix('/**/'): value for key, value in raw.items()}
+
+
 def test_config_is_keyed_by_node_name_with_ros_parameters():
-    config = yaml.safe_load((ROOT / 'config' / 'sela.yaml').read_text())
-    assert set(config) == set(NODES)
+    config = _config()
     from sela_ros.nodes.planner_node import load_map_file
 
     assert load_map_file(ROOT / 'config' / 'obstacle_map.yaml').occupied.any()
@@ -118,7 +126,7 @@ def test_config_defaults_are_the_code_defaults():
     from sela_ros.core.plausibility import OutcomeLimits
     from sela_ros.core.sela import SELAConfig
 
-    config = yaml.safe_load((ROOT / 'config' / 'sela.yaml').read_text())
+    config = _config()
     adapter = config['sela_adapter']['ros__parameters']
     for key, value in SELAConfig().to_dict().items():
         if key in adapter:

@@ -57,8 +57,9 @@ def graph(request):
 
 
 def _config():
+    """config/sela.yaml keyed by node name (its keys are ``/**/<node>``)."""
     with open(CONFIG) as handle:
-        return yaml.safe_load(handle)
+        return {k.removeprefix('/**/'): v for k, v in yaml.safe_load(handle).items()}
 
 
 def _in_process_mission(damage, seed, goal, on_step=None):
