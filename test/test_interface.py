@@ -4,10 +4,10 @@ from sela_ros.nodes import interface as ifc
 DESIGN = {  # DESIGN.md's table (plus what the package adds), as seen in the root namespace
     '/clock', '/hexapod/odom', '/hexapod/behavior', '/hexapod/behavior_outcome', '/goal_pose',
     '/planner/path', '/planner/make_plan', '/sela/target', '/sela/reward', '/diagnostics',
-    '/sela_adapter/adapt', '/sim_bridge/reset',
+    '/sela_adapter/adapt', '/sim_bridge/reset', '/tf', '/robot_description',
 }
 ADDED = {'/hexapod/joint_states', '/planner/map', '/sela/prediction',
-         '/damage_detector/verdict', '/sela_adapter/clear',
+         '/damage_detector/verdict', '/sela_adapter/clear', '/sela/markers',
          '/map', '/goal_path'}  # map_server's map for the planner; a mission of many goals
 
 
