@@ -18,13 +18,14 @@ import numpy as np
 from sela_ros.core import stepper_io as io
 from sela_ros.core.geometry import planar_distance
 from sela_ros.core.learning import MissionLogic
+from sela_ros.core.mission_goals import next_goal, take_goals
 from sela_ros.core.mission_state import (
     check_resume,
     drop_mission,
     mission_snapshot,
     restore_mission,
 )
-from sela_ros.core.mission_status import detection_status, goal_status, mission_status
+from sela_ros.core.mission_status import detection_status, mission_status
 from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
 from sela_ros.core.stepper_io import (
     AskedPlan,
@@ -114,28 +115,7 @@ class MissionStepper:
         return self._take_goals(list(event.goals))
 
     def _take_goals(self, goals):
-        """The mission is now ``goals`` in order (one goal: a plain goal)."""
-        goal = np.asarray(goals[0], dtype=float).reshape(-1)[:2]
-        rest = [np.asarray(g, dtype=float).reshape(-1)[:2] for g in goals[1:]]
-        if (self.goal is not None and np.array_equal(goal, self.goal)
-                and self.state not in (State.IDLE, State.DONE)):
-            self.goals_left, self.goal_count = rest, self.goal_index + len(rest)
-            return [goal_status(self, 'goal already in progress')]  # it goes on
-        self.goals_left, self.goal_index, self.goal_count = rest, 1, len(goals)
-        self.sela.set_goal(goal)
-        self.goal = goal
-        self._plan = None
-        if self.resume is not None and self.state is not State.EXECUTING:
-            self.resume = self.pose = None  # a new mission, from where the robot is
-        self.steps = 0
-        self.result = None
-        if self.state in (State.IDLE, State.DONE):
-            self.state = State.READY
-        out = [Report(Level.OK, f'new goal ({goal[0]:.2f}, {goal[1]:.2f})'),
-               goal_status(self, 'new goal'), self._save()]
-        if self.hold:
-            out.append(Report(Level.ERROR, self.hold))
-        return out
+        return take_goals(self, goals)
 
     def _on_pose(self, event, now):
         pose = np.asarray(event.pose, dtype=float)
@@ -371,17 +351,7 @@ class MissionStepper:
                                        waypoint=tuple(p.waypoint), candidates=d.candidates)]
 
     def _next_goal(self, pose):
-        """A goal of the mission is reached: on to the next, with all that was learned."""
-        reached, steps = self.goal, self.steps
-        self.goal = self.goals_left.pop(0)
-        self.sela.set_goal(self.goal)
-        self.goal_index += 1
-        self.steps = 0
-        self._plan = None
-        message = (f'goal {self.goal_index - 1}/{self.goal_count} reached after {steps} steps')
-        return [Report(Level.OK, f'{message}, pose ({pose[0]:.2f}, {pose[1]:.2f}); next goal '
-                       f'({self.goal[0]:.2f}, {self.goal[1]:.2f})'),
-                goal_status(self, message, reached=reached, reached_steps=steps), self._save()]
+        return next_goal(self, pose)
 
     def _finish(self, success, pose):
         self.state = State.DONE

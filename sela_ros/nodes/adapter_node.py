@@ -1,16 +1,13 @@
 """The ``sela_adapter`` node: the archive, the GPs and UCB; chooses gaits and learns.
 
-A thin layer around :class:`sela_ros.core.stepper.MissionStepper` (the step cycle: plan ->
-ask -> command -> outcome -> verdict -> learn): each message or service answer becomes a
-stepper event, each command it returns a message, a service call or a file write; no
-callback waits. The waypoint is the last pose of ``planner/make_plan``'s answer; outcomes
+A thin layer around :class:`sela_ros.core.stepper.MissionStepper` (plan -> ask -> command ->
+outcome -> verdict -> learn): each message or service answer becomes a stepper event, each
+command it returns a message, a service call or a file write; no callback waits. Outcomes
 and verdicts (``damage_detector/verdict``) pair with the command by id. ``~/adapt`` starts
-adaptation (or restarts it from scratch), ``~/clear`` forgets what was learned. What was
-learned and where the mission stands go to ``state_file`` after every step and come back at
-start-up (``resume``). A bad archive is reported and the node stays up: set a good one with
-``ros2 param set /sela_adapter archive PATH``.
+(or restarts) adaptation, ``~/clear`` forgets what was learned. What was learned and where
+the mission stands go to ``state_file`` after every step and come back at start-up
+(``resume``); archive and state file handling is in :mod:`sela_ros.nodes.adapter_support`.
 """
-import os
 from collections import deque
 
 from nav_msgs.srv import GetPlan
@@ -22,14 +19,12 @@ from std_srvs.srv import Trigger
 
 from sela_ros.core import persistence
 from sela_ros.core import stepper_io as io
-from sela_ros.core.archive import ArchiveError, default_archive_path, load_archive
-from sela_ros.core.learning import make_sela
+from sela_ros.core.archive import ArchiveError
 from sela_ros.core.planning import OccupancyGrid
-from sela_ros.core.stepper import MissionStepper
 from sela_ros.nodes import adapter_params as params
+from sela_ros.nodes import adapter_support, markers
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
-from sela_ros.nodes import markers
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
@@ -44,7 +39,8 @@ class SelaAdapter(Node):
         super().__init__(ifc.SELA_ADAPTER)
         self.values = declare(self, params.PARAMETERS, on_change=self.parameters_callback)
         self.frame_id = self.values['frame_id']
-        self.archive = self.stepper = None
+        # The planner's map (latched) rules out goals off it at once.
+        self.archive = self.archive_path = self.stepper = self.map = None
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         # Saves are written off the executor's thread; what announces a step waits for the
         # save before it (acknowledged means durable) and is released on the executor's
@@ -52,14 +48,12 @@ class SelaAdapter(Node):
         self._saved = self.create_guard_condition(self._release_saved)
         self.store = persistence.StateStore(self.values['state_file'] or str(
             persistence.default_state_file()), on_released=self._saved.trigger)
-        self.archive_path = None
-        self.map = None  # the planner's map (latched): goals off it are refused at once
         self._events, self._feeding, self._reply = deque(), False, None
         self._deferred_plan = None  # a plan request waiting for the planner to come up
         self.pubs = {kind: ifc.publisher(self, topic) for kind, topic in (
             ('behavior', ifc.BEHAVIOR), ('prediction', ifc.PREDICTION),
             ('reward', ifc.REWARD), ('diagnostics', ifc.DIAGNOSTICS), ('markers', ifc.MARKERS))}
-        self._trail = deque(maxlen=500)  # where the robot ended each step (the markers' trail)
+        self.markers = markers.MarkerPublisher(self, self.pubs['markers'], self.frame_id)
         # Each input message becomes one stepper event; a malformed one is logged, dropped.
         for topic, what, event in (
                 (ifc.GOAL, 'goal rejected', lambda m: conv.goal_event(m, self.frame_id)),
@@ -78,79 +72,15 @@ class SelaAdapter(Node):
             io.AdaptRequested(), 'no archive loaded: set the archive parameter first', a))
         ifc.server(self, ifc.CLEAR, lambda q, a: self._ask(
             io.ClearRequested(), 'no archive loaded: nothing to clear', a))
-        self.add_on_set_parameters_callback(self.parameters_callback)
         add_heartbeat(self)
         try:
-            self._use_archive(self.values['archive'])
+            adapter_support.use_archive(self, self.values['archive'])
         except ArchiveError as exc:
             self._report(io.Level.ERROR, f'no archive loaded: {exc}')
         else:
             if self.values['resume']:
-                self._resume()
+                adapter_support.resume(self)
         self.create_timer(TICK_PERIOD, self.tick, clock=self.wall)
-
-    def _use_archive(self, path):
-        path = path or str(default_archive_path())
-        archive, old = load_archive(path), self.stepper
-        self.archive, self.archive_path = archive, path
-        self.stepper = MissionStepper(make_sela(archive, params.sela_config(self.values)),
-                                      params.stepper_config(self.values))
-        self.sim_check.use(archive, path)
-        self.get_logger().info(f'archive {path}: {len(archive)} behaviours')
-        if old is not None:
-            self.stepper.next_id = old.next_id  # command ids stay unique across archives
-        if old is not None and old.goal is not None and old.state is not io.State.DONE:
-            if old.odom is not None:  # the new stepper goes on with the goal, from here
-                self._feed(io.PoseObserved(tuple(old.odom), old.odom_stamp))
-            self._feed(io.GoalsReceived((tuple(old.goal), *map(tuple, old.goals_left))))
-
-    def _archive_change(self, value):
-        """Why ``archive`` cannot become ``value`` now, or None (then it is in use).
-
-        The same file again keeps everything (nothing to load). Another file would make what
-        was learned meaningless (its indices are the old archive's gaits): refused while
-        anything is learned, until ``~/clear``.
-        """
-        path = value or str(default_archive_path())
-        if self.archive is not None and _same_file(path, self.archive_path):
-            self.get_logger().info(f'archive {path} is the one in use: kept, with what was '
-                                   'learned on it')
-            return None
-        if self.stepper is not None and self.stepper.state not in (
-                io.State.IDLE, io.State.DONE, io.State.READY):
-            return 'archive cannot change mid-step'
-        learned = 0 if self.stepper is None else len(self.stepper.sela.observations[0])
-        if learned:
-            return (f'archive {path} refused: {learned} observation(s) were learned on '
-                    f'{self.archive_path} and would be lost; call '
-                    f'{self.get_name()}/clear first, then set the archive again')
-        try:
-            self._use_archive(path)
-        except ArchiveError as exc:
-            return str(exc)
-        return None
-
-    def _resume(self):
-        path = self.store.path
-        restored = []
-
-        def restore(state):
-            # Into a fresh stepper, swapped in only once all of it came back.
-            stepper = MissionStepper(make_sela(self.archive, params.sela_config(self.values)),
-                                     params.stepper_config(self.values))
-            restored.extend(stepper.restore(state, self._now()))
-            self.stepper = stepper
-
-        state, problem = persistence.resume_state(path, len(self.archive), restore)
-        if problem:
-            self._report(io.Level.ERROR, problem)
-            return
-        self._dispatch(restored)
-        if state is not None:
-            mode = 'adapting' if self.stepper.logic.adapting else 'trusting the map'
-            self.get_logger().warn(f'resumed from {path}: '
-                                   f'{len(self.stepper.sela.observations[0])} observation(s), '
-                                   f'{mode}')
 
     # --- inputs -> events ----------------------------------------------------------------
 
@@ -163,7 +93,7 @@ class SelaAdapter(Node):
         except conv.MessageError as exc:
             self.get_logger().error(f'{what}: {exc}')
             return
-        if isinstance(event, io.GoalReceived) and self._goal_refused(event.goal):
+        if isinstance(event, io.GoalReceived) and adapter_support.goal_refused(self, event.goal):
             return
         self._feed(event)
 
@@ -173,24 +103,6 @@ class SelaAdapter(Node):
             self.map = OccupancyGrid(*conv.occupancy_grid_from_msg(msg))
         except (conv.MessageError, ValueError) as exc:
             self.get_logger().error(f'ignored map: {exc}')
-
-    def _goal_refused(self, goal):
-        """A goal off the planner's map or inside an obstacle cannot be planned: refused
-        here, and a mission in progress goes on (without a map: the planner decides)."""
-        if self.map is None:
-            return False
-        if not self.map.in_map(goal):
-            problem = f'off the map {self.map.bounds_text()}'
-        elif not self.map.is_free(self.map.world_to_cell(goal)):
-            problem = 'inside an obstacle'
-        else:
-            return False
-        running = self.stepper is not None and self.stepper.goal is not None and \
-            self.stepper.state not in (io.State.IDLE, io.State.DONE)
-        self._report(io.Level.ERROR, f'goal ({goal[0]:.2f}, {goal[1]:.2f}) refused: {problem}'
-                     + (f'; the mission to ({self.stepper.goal[0]:.2f}, '
-                        f'{self.stepper.goal[1]:.2f}) goes on' if running else ''))
-        return True
 
     @guard_service(what='service')
     def _ask(self, event, refusal, response):
@@ -212,7 +124,7 @@ class SelaAdapter(Node):
         # Called by params.declare with values its check accepted (the rest is read-only).
         for param in changes:
             if param.name == 'archive':
-                problem = self._archive_change(param.value)
+                problem = adapter_support.archive_change(self, param.value)
                 if problem:
                     return SetParametersResult(successful=False, reason=problem)
             elif self.stepper is not None:
@@ -222,7 +134,7 @@ class SelaAdapter(Node):
 
     # --- the stepper and its commands ----------------------------------------------------
 
-    def _now(self):
+    def now(self):
         return self.wall.now().nanoseconds * 1e-9
 
     def _feed(self, event):
@@ -235,7 +147,7 @@ class SelaAdapter(Node):
         self._feeding = True
         try:
             while self._events:
-                self._dispatch(self.stepper.handle(self._events.popleft(), self._now()))
+                self._dispatch(self.stepper.handle(self._events.popleft(), self.now()))
         finally:
             self._feeding = False
 
@@ -280,7 +192,7 @@ class SelaAdapter(Node):
                     self._status(c.level, c.message, dict(
                         c.values, saved='False' if error else 'True'))
                     if 'end_pose' in c.values and 'step' in c.values:
-                        self._outcome_markers(c.values['end_pose'])
+                        self.markers.outcome(c.values['end_pose'])
 
     def _send_gait(self, c):
         self.pubs['behavior'].publish(conv.behavior_to_msg(self.archive.params[c.index],
@@ -288,26 +200,7 @@ class SelaAdapter(Node):
         if not c.resend:
             self.pubs['prediction'].publish(conv.prediction_to_msg(
                 c.behavior_id, c.predicted_gr, c.sigma))
-            self._decision_markers(c)
-
-    def _decision_markers(self, gait):
-        # What SELA thinks, for RViz/Foxglove: the waypoint, the best candidates by UCB
-        # (discs of 2 sigma where each is predicted to land), the chosen one.
-        if gait.candidates is None or not len(gait.candidates):
-            return
-        chosen = gait.candidates[0]
-        self.pubs['markers'].publish(markers.decision_markers(
-            self.frame_id, self.get_clock().now().to_msg(), gait.pose, gait.waypoint,
-            gait.candidates, chosen[:2], chosen[2]))
-
-    def _outcome_markers(self, end_pose_text):
-        try:
-            end = [float(v) for v in end_pose_text.split()[:2]]
-        except ValueError:
-            return
-        self._trail.append(end)
-        self.pubs['markers'].publish(markers.outcome_markers(
-            self.frame_id, self.get_clock().now().to_msg(), end, list(self._trail)))
+            self.markers.decision(c)
 
     def _request_plan(self, command):
         if not self.plan_client.service_is_ready():
@@ -316,13 +209,8 @@ class SelaAdapter(Node):
         request = GetPlan.Request(
             start=conv.pose_stamped(command.start[:2], command.start[2], frame_id=self.frame_id),
             goal=conv.pose_stamped(command.goal, 0.0, frame_id=self.frame_id))
-
-        def event(answer):
-            poses = answer.plan.poses if answer is not None else []
-            waypoint = (poses[-1].pose.position.x, poses[-1].pose.position.y) if poses else None
-            return io.PlanReceived(command.step, tuple(command.start), waypoint,
-                                   'the planner says why on /diagnostics')
-        self._call(self.plan_client, request, event)
+        self._call(self.plan_client, request,
+                   lambda answer: adapter_support.plan_event(answer, command))
 
     def _call(self, client, request, event):
         """Call ``client``; its answer (None: not available) becomes ``event(answer)``."""
@@ -350,13 +238,6 @@ class SelaAdapter(Node):
     def destroy_node(self):
         self.store.close()  # the last snapshot reaches the disk
         super().destroy_node()
-
-
-def _same_file(a, b):
-    try:
-        return os.path.samefile(a, b)
-    except (OSError, ValueError, TypeError):
-        return False
 
 
 def main(args=None):

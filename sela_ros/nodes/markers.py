@@ -10,6 +10,8 @@ step replaces the last):
 - ``observed``: where the robot actually went with it (green sphere), sent once the
   outcome is known, and the trail of every observed end so far (a line strip).
 """
+from collections import deque
+
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Point
 from std_msgs.msg import ColorRGBA
@@ -94,3 +96,30 @@ def outcome_markers(frame_id, stamp, observed_xy, trail):
         m.scale.x = 0.015
         out.markers.append(m)
     return out
+
+
+class MarkerPublisher:
+    """What SELA thinks, for RViz and Foxglove, published on ``sela/markers``: at each gait
+    sent, the waypoint, the best candidates by UCB (discs of 2 sigma where each is predicted
+    to land) and the chosen one; at each outcome, where the robot ended and its trail."""
+
+    def __init__(self, node, publisher, frame_id):
+        self.node, self.pub, self.frame_id = node, publisher, frame_id
+        self.trail = deque(maxlen=500)
+
+    def decision(self, gait):
+        if gait.candidates is None or not len(gait.candidates):
+            return
+        chosen = gait.candidates[0]
+        self.pub.publish(decision_markers(
+            self.frame_id, self.node.get_clock().now().to_msg(), gait.pose, gait.waypoint,
+            gait.candidates, chosen[:2], chosen[2]))
+
+    def outcome(self, end_pose_text):
+        try:
+            end = [float(v) for v in end_pose_text.split()[:2]]
+        except ValueError:
+            return
+        self.trail.append(end)
+        self.pub.publish(outcome_markers(
+            self.frame_id, self.node.get_clock().now().to_msg(), end, list(self.trail)))
