@@ -126,8 +126,9 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
                           and outcome_pub.get_subscription_count() > 0, 60, 'the two nodes')
         # (Said once at start-up, on /diagnostics and in the log: the log keeps it.)
         # The map loader names the wrongly typed field (it used to be a bare TypeError).
+        client.spin_until(lambda: 'planning on the map.* parameters instead'
+                          in nodes.logs().get('planner.log', ''), 60, "the planner's map error")
         assert 'map.origin must be a list [x, y], got 5' in nodes.logs()['planner.log']
-        assert 'planning on the map.* parameters instead' in nodes.logs()['planner.log']
         # It plans on the map.* parameters (bounds -1..3 m): a path to (2.5, 2.5).
         request = GetPlan.Request(start=conv.pose_stamped((0.0, 0.0), frame_id='odom'),
                                   goal=conv.pose_stamped((2.5, 2.5), frame_id='odom'))

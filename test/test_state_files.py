@@ -136,8 +136,11 @@ def test_a_failed_save_is_released_with_its_error(tmp_path):
     blocker = tmp_path / 'not_a_directory'
     blocker.write_text('a file where the state folder should be')
     store = StateStore(blocker / 'state.json')
+    gate = threading.Event()
+    store._writer.submit(gate.wait)  # the save stays in flight until it has its announcement
     store.save({'step': 1})
     store.after_saves('step 1 announced')
+    gate.set()
     store.flush(timeout=30)
     [(items, error)] = store.released()
     assert items == ['step 1 announced'] and 'could not save the learned state' in error
