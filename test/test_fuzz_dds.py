@@ -132,7 +132,12 @@ def _parameter_value(draw):
 
 def _declared(config):
     """Every node's parameter names, from the config file (they are all there)."""
-    return {node: sorted(section['ros__parameters']) for node, section in config.items()}
+    return {_node(key): sorted(section['ros__parameters']) for key, section in config.items()}
+
+
+def _node(key):
+    """The node name of a parameters-file key (``/**/planner`` matches it in any namespace)."""
+    return key.rsplit('/', 1)[-1]
 
 
 @st.composite
@@ -182,7 +187,8 @@ def _set_back(client, config):
     """Every parameter back to its configured value (a fuzzed valid value may stay)."""
     from rclpy.parameter import Parameter as RclpyParameter
 
-    for node, section in config.items():
+    for key, section in config.items():
+        node = _node(key)
         values = [RclpyParameter(k, value=v).to_parameter_msg()
                   for k, v in section['ros__parameters'].items() if k != 'use_sim_time']
         cli = client.node.create_client(SetParameters, f'/{node}/set_parameters')
