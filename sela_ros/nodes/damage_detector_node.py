@@ -100,10 +100,13 @@ class DamageDetectorNode(Node):
     def check_heartbeats(self):
         newly_silent, back = self.watch.check()
         statuses = []
-        for node in newly_silent:
+        # A silent node is logged once but stays an ERROR on /diagnostics at every check, as
+        # diagnostics are meant to be read (a monitor that starts late still sees it).
+        for node in sorted(self.watch.silent):
             message = (f'{node} silent for {self.watch.silence(node):.1f} s '
                        f'(heartbeat.timeout {self.watch.timeout} s)')
-            self.get_logger().error(message)
+            if node in newly_silent:
+                self.get_logger().error(message)
             statuses.append(conv.diagnostic_status(DiagnosticStatus.ERROR,
                                                    f'{node}: liveness', message))
         for node in back:
