@@ -254,13 +254,7 @@ class CVTMapElites(MapElites):
         run.bounds = np.asarray(state['bounds'], dtype=np.float64)
         run.config = dict(state['config'])
         run.seed = int(run.config['seed'])
-        run.n_evaluations = int(state['n_evaluations'])
-        run.n_batches = int(state['n_batches'])
-        run.n_invalid = int(state['n_invalid'])
-        run.elapsed = float(state['elapsed'])
-        run.info = dict(state.get('info', {}))
-        run._replay_journal()
-        return run
+        return run._resumed(state)
 
     def to_archive(self, **metadata: Any) -> Archive:
         """The elites as an :class:`~sela_ros.core.archive.Archive`, centroids included.

@@ -258,13 +258,18 @@ class MapElites:
                                    seed=es['seed'])
         emitter.load_state_dict(es)
         run = cls(archive, emitter, evaluate, executor, checkpoint_path, checkpoint_every)
-        run.n_evaluations = int(state['n_evaluations'])
-        run.n_batches = int(state['n_batches'])
-        run.n_invalid = int(state['n_invalid'])
-        run.elapsed = float(state['elapsed'])
-        run.info = dict(state.get('info', {}))
-        run._replay_journal()
-        return run
+        return run._resumed(state)
+
+    def _resumed(self, state):
+        """Take the counters of a checkpoint's ``state``, then replay the batches the
+        journal holds beyond it; returns this run."""
+        self.n_evaluations = int(state['n_evaluations'])
+        self.n_batches = int(state['n_batches'])
+        self.n_invalid = int(state['n_invalid'])
+        self.elapsed = float(state['elapsed'])
+        self.info = dict(state.get('info', {}))
+        self._replay_journal()
+        return self
 
     def to_archive(self, **metadata: Any) -> Archive:
         """The elites as an :class:`~sela_ros.core.archive.Archive` (for SELA, or to save).
