@@ -277,6 +277,27 @@ def test_the_same_goal_again_goes_on_and_a_new_one_starts_over():
     assert only(d.outcome(gait), RequestPlan).goal.tolist() == [0.0, 1.0]
 
 
+def test_each_mission_is_numbered_and_its_result_names_it_also_after_a_restart():
+    d = Driver()
+    request = d.start(goal=(0.25, 0.0))
+    taken = only(d.log, PublishStatus).values
+    assert taken['mission'] == '1'
+    assert d(GoalReceived((0.25, 0.0)))[0].values['mission'] == '1'  # in progress: the same
+    gait = only(d.plan(request), SendGait)
+    out = d.outcome(gait) + d(VerdictReceived(gait.behavior_id, False))
+    final = [s.values for s in of(out, PublishStatus) if 'success' in s.values]
+    assert final[0]['mission'] == '1' and final[0]['success'] == 'True'
+    # The same goal again is a new mission: a client can tell its result from the last one.
+    out = d(GoalReceived((0.25, 0.0)))
+    assert {s.values['mission'] for s in of(out, PublishStatus)} == {'2'}  # taken (and done)
+    snapshot = d.stepper.snapshot()
+    restarted = Driver()
+    restarted.stepper.restore(snapshot, 0.0)
+    assert restarted.stepper.mission_id == 2
+    restarted(PoseObserved((0.25, 0.0, 0.0), stamp=0.0))
+    assert restarted(GoalReceived((3.0, 0.0)))[1].values['mission'] == '3'
+
+
 def test_outcomes_of_other_commands_are_ignored():
     d = Driver()
     gait = only(d.plan(d.start()), SendGait)

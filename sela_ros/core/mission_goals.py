@@ -26,6 +26,7 @@ def take_goals(stepper, goals):
         stepper.resume = stepper.pose = None  # a new mission, from where the robot is
     stepper.steps = 0
     stepper.result = None
+    stepper.mission_id += 1
     if stepper.state in (State.IDLE, State.DONE):
         stepper.state = State.READY
     out = [Report(Level.OK, f'new goal ({goal[0]:.2f}, {goal[1]:.2f})'),

@@ -28,7 +28,7 @@ def mission_snapshot(stepper):
     last = stepper.logic.last
     pose = stepper.current_pose()
     return {'sela': stepper.sela.state_dict(), 'mission': {
-        'state': stepper.state.value, 'steps': stepper.steps,
+        'state': stepper.state.value, 'steps': stepper.steps, 'mission_id': stepper.mission_id,
         'failed_steps': stepper.failed_steps,
         'goal': None if stepper.goal is None else _list(stepper.goal),
         'goals_left': [_list(g) for g in stepper.goals_left],
@@ -55,6 +55,7 @@ def restore_mission(stepper, snapshot, now):
     stepper.logic.last = None if last is None else (int(last[0]), np.array(last[1], float))
     stepper.next_id = int(m['next_id'])
     stepper.failed_steps = int(m.get('failed_steps', 0))
+    stepper.mission_id = int(m.get('mission_id', 0))
     state = State(m['state'])
     if m['goal'] is None or state in (State.IDLE, State.DONE):
         return []

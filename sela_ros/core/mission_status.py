@@ -4,7 +4,9 @@ The ``sela_adapter`` node publishes these values on ``diagnostics`` (name ``sela
 mission``) and :class:`sela_ros.tools.mission_client.MissionClient` reads them back: a
 status with ``step`` is a step, with ``adapt`` a detection, with ``goal`` the goal taken
 (and with ``goal_reached`` too: a goal of a mission of several was reached, on to the next),
-with ``success`` the end of the mission. ``goal_index`` of ``goals`` says where a mission of
+with ``success`` the end of the mission (repeated every second while the adapter is idle,
+as diagnostics are: a client that was not listening at the end still hears it). ``mission``
+numbers the missions: the status of a goal and its result carry the same number. ``goal_index`` of ``goals`` says where a mission of
 several goals stands. Vectors are space-separated numbers. ROS-free.
 """
 import math
@@ -14,7 +16,8 @@ from sela_ros.core.stepper_io import Level, PublishStatus
 
 def mission_status(stepper, reward=None):
     """The status of ``stepper``; with ``reward``, the step that has just ended."""
-    values = {'state': stepper.state.value, 'steps': stepper.steps,
+    values = {'mission': stepper.mission_id, 'state': stepper.state.value,
+              'steps': stepper.steps,
               'adapting': stepper.logic.adapting, 'adaptations': stepper.logic.adaptations,
               'observations': len(stepper.sela.observations[0]),
               'failed_steps': stepper.failed_steps,

@@ -63,6 +63,9 @@ class MissionStepper:
         self.steps = 0
         self.failed_steps = 0
         self.result = None  # True / False once DONE
+        # Counts the missions taken (saved with them): a result names its mission, so a
+        # client can tell the result of its own goal from a repeat of an earlier one.
+        self.mission_id = 0
         self.next_id = 1
         self.pending = None  # PendingStep
         self.pose = self.pose_stamp = None  # the latest outcome's end pose, and its time

@@ -32,6 +32,7 @@ from sela_ros.nodes.params import declare
 from sela_ros.nodes.sim_check import SimulatorCheck
 
 TICK_PERIOD = 0.25  # s (wall): time-outs only, steps advance on events
+RESULT_PERIOD = 1.0  # s (wall): a mission's result is said again this often while idle
 
 
 class SelaAdapter(Node):
@@ -50,6 +51,7 @@ class SelaAdapter(Node):
             persistence.default_state_file()), on_released=self._saved.trigger)
         self._events, self._feeding, self._reply = deque(), False, None
         self._deferred_plan = None  # a plan request waiting for the planner to come up
+        self._result = None  # the last mission's result status, and when it was said
         self.pubs = {kind: ifc.publisher(self, topic) for kind, topic in (
             ('behavior', ifc.BEHAVIOR), ('prediction', ifc.PREDICTION),
             ('reward', ifc.REWARD), ('diagnostics', ifc.DIAGNOSTICS), ('markers', ifc.MARKERS))}
@@ -118,6 +120,21 @@ class SelaAdapter(Node):
             command, self._deferred_plan = self._deferred_plan, None
             self._request_plan(command)
         self._feed(io.Tick())
+        self._repeat_result()
+
+    def _repeat_result(self):
+        """While idle after a mission, its result is said again every second, as
+        diagnostics are: a client that was not matched when it ended (the adapter had just
+        restarted) still hears it. The result names its mission (``mission``)."""
+        if self._result is None:
+            return
+        level, message, values, said = self._result
+        if (self.stepper is None or self.stepper.state is not io.State.DONE
+                or values.get('mission') != str(self.stepper.mission_id)):
+            self._result = None  # a new mission, or a cleared one: nothing to repeat
+        elif self.now() - said >= RESULT_PERIOD:
+            self._result = (level, message, values, self.now())
+            self._status(level, message, values)
 
     @guard_parameters
     def parameters_callback(self, changes):
@@ -189,8 +206,10 @@ class SelaAdapter(Node):
                 elif isinstance(c, io.PublishReward):
                     self.pubs['reward'].publish(Float64(data=c.value))
                 else:
-                    self._status(c.level, c.message, dict(
-                        c.values, saved='False' if error else 'True'))
+                    values = dict(c.values, saved='False' if error else 'True')
+                    self._status(c.level, c.message, values)
+                    if 'success' in values:
+                        self._result = (c.level, c.message, values, self.now())
                     if 'end_pose' in c.values and 'step' in c.values:
                         self.markers.outcome(c.values['end_pose'])
 

@@ -7,6 +7,8 @@ on ``~/verdict`` (``/damage_detector/verdict``): the adapter waits for it, and a
 says damage was detected. The same verdict goes to ``diagnostics`` (name ``damage_detector:
 prediction error``; level ERROR when damage is detected) for whoever monitors the robot.
 """
+import time
+
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -64,7 +66,7 @@ class DamageDetectorNode(Node):
         ifc.subscription(self, ifc.OUTCOME, self.outcome_callback)
         # Watch the other nodes' heartbeats: a silent node is reported on diagnostics.
         self.watch = SilenceWatch(values['heartbeat.nodes'], values['heartbeat.timeout'])
-        self._talkers, self._faked = (-1.0, set()), set()
+        self._talkers, self._faked = (-1.0, set()), {}  # node -> when last faked
         ifc.subscription(self, ifc.DIAGNOSTICS, self.diagnostics_callback)
         self.create_timer(0.5, self.check_heartbeats, clock=self.wall)
         add_heartbeat(self)
@@ -87,21 +89,23 @@ class DamageDetectorNode(Node):
             if not status.name.endswith(ifc.HEARTBEAT_SUFFIX):
                 continue
             faked = self.watch.heard(status.name, publishers=self._diagnostics_publishers())
-            if faked and faked not in self._faked:
-                self._faked.add(faked)  # said once per episode, not at every fake
-                message = (f'heartbeat of {faked} sent by another process: {faked} is not in '
-                           'the graph; not counted')
-                self.get_logger().error(message)
-                self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
-                    DiagnosticStatus.ERROR, f'{faked}: liveness', message),
-                    self.get_clock().now().to_msg()))
+            if faked:
+                if faked not in self._faked:  # logged once per episode, not at every fake
+                    self.get_logger().error(self._faked_message(faked))
+                self._faked[faked] = time.monotonic()
+
+    @staticmethod
+    def _faked_message(node):
+        return (f'heartbeat of {node} sent by another process: {node} is not in the graph; '
+                'not counted')
 
     @guard
     def check_heartbeats(self):
         newly_silent, back = self.watch.check()
         statuses = []
         # A silent node is logged once but stays an ERROR on /diagnostics at every check, as
-        # diagnostics are meant to be read (a monitor that starts late still sees it).
+        # diagnostics are meant to be read (a monitor that starts late still sees it); so
+        # does a faked heartbeat, as long as the fakes go on.
         for node in sorted(self.watch.silent):
             message = (f'{node} silent for {self.watch.silence(node):.1f} s '
                        f'(heartbeat.timeout {self.watch.timeout} s)')
@@ -109,8 +113,15 @@ class DamageDetectorNode(Node):
                 self.get_logger().error(message)
             statuses.append(conv.diagnostic_status(DiagnosticStatus.ERROR,
                                                    f'{node}: liveness', message))
+        now = time.monotonic()
+        for node, heard in sorted(self._faked.items()):
+            if now - heard > self.watch.timeout:
+                del self._faked[node]  # the fakes stopped: a new one is logged again
+            else:
+                statuses.append(conv.diagnostic_status(
+                    DiagnosticStatus.ERROR, f'{node}: liveness', self._faked_message(node)))
         for node in back:
-            self._faked.discard(node)
+            self._faked.pop(node, None)
             self.get_logger().info(f'{node} is back')
             statuses.append(conv.diagnostic_status(DiagnosticStatus.OK, f'{node}: liveness',
                                                    'heartbeat back'))

@@ -97,7 +97,7 @@ class MissionClient:
         self.namespace = namespace.rstrip('/')
         self.statuses = deque(maxlen=STATUSES_KEPT)  # heard on diagnostics (any node)
         self.steps, self.detections, self.goals_reached = [], [], []
-        self.goal = self.result = self._acked = None
+        self.goal = self.result = self._acked = self._mission = None
         self._goal_pub = node.create_publisher(ifc.GOAL.type, self.name(ifc.GOAL.name),
                                                ifc.GOAL.qos)
         self._goals_pub = node.create_publisher(ifc.GOAL_PATH.type,
@@ -128,10 +128,14 @@ class MissionClient:
                     int(values['goal_index']) - 1, np.array(values['goal_reached'].split(),
                                                             float),
                     int(values['goal_reached_steps'])))
-            elif 'goal' in values and self.goal is not None and np.allclose(
-                    np.array(values['goal'].split(), float), self.goal):
+            elif ('goal' in values and 'success' not in values and self.goal is not None
+                    and np.allclose(np.array(values['goal'].split(), float), self.goal)):
                 self._acked = True
-            if 'success' in values and self._acked:
+                self._mission = values.get('mission')
+            # The result of this client's mission (said again while the adapter is idle), not
+            # of an earlier one to the same goal.
+            if ('success' in values and self._acked
+                    and values.get('mission') == self._mission):
                 self.result = MissionResult(values['success'] == 'True', int(values['steps']),
                                             int(values['adaptations']), status.message, values)
 
@@ -175,7 +179,7 @@ class MissionClient:
     def _send(self, publisher, msg, first_goal, timeout, resend_period):
         self.wait_until_ready(timeout, publisher)
         self.goal = np.array(first_goal, dtype=float)
-        self.result, self._acked, self.goals_reached = None, False, []
+        self.result, self._acked, self._mission, self.goals_reached = None, False, None, []
         deadline = time.monotonic() + timeout
         while not self._acked:
             publisher.publish(msg)
