@@ -6,8 +6,9 @@ status with ``step`` is a step, with ``adapt`` a detection, with ``goal`` the go
 (and with ``goal_reached`` too: a goal of a mission of several was reached, on to the next),
 with ``success`` the end of the mission (repeated every second while the adapter is idle,
 as diagnostics are: a client that was not listening at the end still hears it). ``mission``
-numbers the missions: the status of a goal and its result carry the same number. ``goal_index`` of ``goals`` says where a mission of
-several goals stands. Vectors are space-separated numbers. ROS-free.
+numbers the missions: the status of a goal and its result carry the same number.
+``goal_index`` of ``goals`` says where a mission of several goals stands. Vectors are
+space-separated numbers. ROS-free.
 """
 import math
 
