@@ -59,7 +59,7 @@ bench: venv
 # The paper's 8-D map in the background; the same target resumes it after any interruption
 # (MAPBUILD_DIR, WORKERS, DASK, EVALUATIONS: see scripts/build_map8d.sh).
 map8d: venv
-	nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 &
+	setsid nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 < /dev/null &
 	@echo "building in the background; progress: $${MAPBUILD_DIR:-/work/mapbuild}/build.log"
 
 lint: venv

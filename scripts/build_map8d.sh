@@ -7,7 +7,7 @@
 #   scripts/build_map8d.sh                       # 1 local worker, /work/mapbuild
 #   WORKERS=16 MAPBUILD_DIR=~/mapbuild scripts/build_map8d.sh
 #   DASK=tcp://scheduler:8786 scripts/build_map8d.sh
-#   nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 &   # what survives a logout
+#   setsid nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 </dev/null &  # survives a logout
 #
 # The run's settings (cells, seed, batch size, physics) live in the checkpoint once it
 # exists: changing CELLS or SEED then has no effect; EVALUATIONS may grow.
