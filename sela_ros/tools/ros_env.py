@@ -90,18 +90,27 @@ def executable(name):
 
 
 def wait_for_publishers(node, spin_once, topics, timeout=60.0, settle=0.5):
-    """Spin until ``node`` has discovered a publisher on each of ``topics``, then ``settle`` s.
+    """Spin until ``node`` has discovered a publisher on each of ``topics`` and each of its
+    own subscriptions to them has matched every one, then ``settle`` s.
 
     On volatile topics what is published before discovery never arrives, so a client that
-    listens to a mission calls this before sending the goal. ``spin_once(timeout_sec)`` spins
-    the node's executor. Returns whether every publisher was found within ``timeout`` s.
+    listens to a mission calls this before sending the goal. A reader only sees its own side
+    of a match: ``settle`` leaves the writers' side the time to match it too.
+    ``spin_once(timeout_sec)`` spins the node's executor. Returns whether every publisher
+    was found (and matched) within ``timeout`` s.
     """
     import time
+
+    def matched(topic):
+        publishers = node.count_publishers(topic)
+        return publishers > 0 and all(
+            s.get_publisher_count() >= publishers for s in node.subscriptions
+            if s.topic_name == topic)
 
     deadline = time.monotonic() + timeout
     found = False
     while time.monotonic() < deadline:
-        found = all(node.count_publishers(t) for t in topics)
+        found = all(matched(t) for t in topics)
         if found:
             break
         spin_once(0.05)
