@@ -170,21 +170,23 @@ def test_killed_nodes_come_back_and_the_mission_completes(graph):
     assert len(before[0]) >= 3
     nodes.start('sela_adapter')
     steps_at_restart = len(diag.steps)
-    client.spin_until(lambda: len(diag.steps) >= steps_at_restart + 2, 200,
-                      'two steps after the adapter restarted')
+    # (or the end of the mission: on a loaded machine the kill may come late in it)
+    client.spin_until(lambda: len(diag.steps) >= steps_at_restart + 2 or diag.get_result(),
+                      200, 'two steps after the adapter restarted')
     after = _observations(nodes.state_file)
     assert after[0][:len(before[0])] == before[0]
     assert after[1][:len(before[1])] == before[1]
 
     # SIGKILL the planner: reported silent, then back, and the mission goes on.
     nodes.kill('planner')
-    client.spin_until(lambda: any('planner silent' in e for e in diag.errors('liveness')), 30,
+    client.spin_until(lambda: any('planner silent' in e for e in diag.errors('liveness')), 60,
                       'the silent planner reported')
     nodes.start('planner')
 
     # SIGKILL the simulator: a new one starts, the adapter resends the lost command.
     steps_now = len(diag.steps)
-    client.spin_until(lambda: len(diag.steps) >= steps_now + 1, 200, 'one more step')
+    client.spin_until(lambda: len(diag.steps) >= steps_now + 1 or diag.get_result(), 200,
+                      'one more step')
     nodes.kill('sim_bridge')
     nodes.start('sim_bridge')
     client.spin_until(diag.get_result, 400, 'the end of the mission')
