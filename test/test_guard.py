@@ -129,6 +129,11 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
         client.spin_until(lambda: 'planning on the map.* parameters instead'
                           in nodes.logs().get('planner.log', ''), 60, "the planner's map error")
         assert 'map.origin must be a list [x, y], got 5' in nodes.logs()['planner.log']
+        # ... and on /diagnostics at every heartbeat of the planner, for whoever looks later.
+        beats = lambda: [s for s in statuses if s.name == 'planner' + ifc.HEARTBEAT_SUFFIX  # noqa: E731
+                         and s.level == DiagnosticStatus.ERROR
+                         and 'map.origin must be a list [x, y], got 5' in s.message]
+        client.spin_until(lambda: len(beats()) >= 2, 30, "the map error in two heartbeats")
         # It plans on the map.* parameters (bounds -1..3 m): a path to (2.5, 2.5).
         request = GetPlan.Request(start=conv.pose_stamped((0.0, 0.0), frame_id='odom'),
                                   goal=conv.pose_stamped((2.5, 2.5), frame_id='odom'))

@@ -10,15 +10,20 @@ from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
 SUFFIX = ifc.HEARTBEAT_SUFFIX
 
 
-def add_heartbeat(node, period=1.0):
-    """Publish ``<node name>: heartbeat`` (level OK) every ``period`` wall-clock seconds."""
+def add_heartbeat(node, period=1.0, problem=None):
+    """Publish ``<node name>: heartbeat`` every ``period`` wall-clock seconds: level OK
+    ('alive'), or ERROR with the message ``problem()`` returns while it returns one (a
+    lasting problem, e.g. the planner's map file could not be used: a monitor that starts
+    late still sees it; the node is alive all the same)."""
     pub = ifc.publisher(node, ifc.DIAGNOSTICS)
     name = node.get_name() + SUFFIX
     started = time.monotonic()
 
     def beat():
+        message = problem() if problem is not None else None
         pub.publish(diagnostic_array(diagnostic_status(
-            DiagnosticStatus.OK, name, 'alive', {'uptime_s': f'{time.monotonic() - started:.1f}'}),
+            DiagnosticStatus.ERROR if message else DiagnosticStatus.OK, name,
+            message or 'alive', {'uptime_s': f'{time.monotonic() - started:.1f}'}),
             node.get_clock().now().to_msg()))
 
     beat()

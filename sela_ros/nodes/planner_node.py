@@ -111,8 +111,8 @@ class PlannerNode(Node):
         ifc.subscription(self, ifc.MAP_IN, self.map_callback)
         ifc.server(self, ifc.MAKE_PLAN, self.make_plan_callback)
         self.add_post_set_parameters_callback(self.parameters_applied_callback)
-        add_heartbeat(self)
         grid, source = self._initial_grid()
+        add_heartbeat(self, problem=lambda: self.map_error)  # said at every beat until fixed
         self._use_grid(grid, source)
         if self.map_error:
             self._report(DiagnosticStatus.ERROR, self.map_error)
@@ -173,6 +173,7 @@ class PlannerNode(Node):
             # No tf here: the map is taken as drawn in the planning frame (true in the
             # simulator, where odom does not drift); say so rather than refuse it.
             source += f' (frame {msg.header.frame_id!r} taken as {self.frame_id!r})'
+        self.map_error = None  # a good map replaces the one that could not be used
         self._use_grid(grid, source)
 
     def _obstacles(self):
@@ -208,6 +209,7 @@ class PlannerNode(Node):
         if self._pending_grid is not None:
             grid, source = self._pending_grid
             self._pending_grid = None
+            self.map_error = None
             self._use_grid(grid, source)
         elif rebuild:
             self._use_grid(self.grid, 'the same map with the new inflation')
