@@ -9,13 +9,14 @@
 #   DASK=tcp://scheduler:8786 scripts/build_map8d.sh
 #   setsid nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 </dev/null &  # survives a logout
 #
-# The run's settings (cells, seed, batch size, physics) live in the checkpoint once it
-# exists: changing CELLS or SEED then has no effect; EVALUATIONS may grow.
+# The run's settings (seed, batch size, physics) live in the checkpoint once it exists:
+# changing SEED then has no effect; EVALUATIONS may grow; a larger CELLS goes on in a finer
+# CVT with every elite found so far carried into it (--regrid), a smaller one is refused.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MAPBUILD_DIR=${MAPBUILD_DIR:-/work/mapbuild}
 EVALUATIONS=${EVALUATIONS:-100000}
-CELLS=${CELLS:-20000}
+CELLS=${CELLS:-60000}
 SEED=${SEED:-1}
 WORKERS=${WORKERS:-1}
 PY=${PY:-.venv/bin/python}
@@ -25,7 +26,7 @@ args=(--descriptor 8d --cells "$CELLS" --evaluations "$EVALUATIONS" --batch-size
       --seed "$SEED" --workers "$WORKERS" --checkpoint-every 5 --checkpoint "$checkpoint"
       --out "$MAPBUILD_DIR/map8d.npz")
 [[ -n "${DASK:-}" ]] && args+=(--dask-scheduler "$DASK")
-[[ -f "$checkpoint" ]] && args+=(--resume)
+[[ -f "$checkpoint" ]] && args+=(--resume --regrid "$CELLS")
 echo "$(date -u +%FT%TZ) build_map8d: $PY -m sela_ros.tools.build_archive ${args[*]}" \
     >> "$MAPBUILD_DIR/build.log"
 export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"

@@ -206,6 +206,49 @@ def test_cli_export_reads_a_checkpoint_without_touching_it(tmp_path):
     np.testing.assert_array_equal(a.params, b.params)
 
 
+def test_regrid_carries_every_elite_into_a_finer_cvt_and_goes_on(tmp_path):
+    run = _run(n=600, checkpoint_path=tmp_path / 'ck.pkl', checkpoint_every=2)
+    old = _elites(run)
+    fine = _centroids(cells=400, seed=4)
+    elites = run.regrid(fine)
+    new = _elites(run)
+    # Each old elite went to its nearest new centroid; a cell that got two keeps the better.
+    cell = np.linalg.norm(old['measures'][:, None] - fine[None], axis=2).argmin(axis=1)
+    best = {c: old['objective'][cell == c].max() for c in np.unique(cell)}
+    assert elites == len(best) == len(new['index'])
+    np.testing.assert_array_equal(np.sort(new['index']), sorted(best))
+    np.testing.assert_allclose([best[i] for i in new['index']], new['objective'])
+    assert run.info['regrids'][0]['to_cells'] == 400 and run.n_evaluations == 600
+    # Nothing is evaluated again; the run goes on in the finer CVT and finds more elites.
+    run.save_checkpoint()
+    run.run(1200, progress=False)
+    assert run.n_evaluations == 1200 and len(_elites(run)['index']) > elites
+    # ... and resumes from its checkpoint in it as any run.
+    resumed = CVTMapElites.resume(tmp_path / 'ck.pkl', EIGHT_D, SerialEvaluator())
+    assert resumed.scheduler.archive.cells == 400
+    with pytest.raises(ValueError, match='more cells'):
+        resumed.regrid(_centroids(cells=64))
+
+
+def test_cli_regrid_on_resume(tmp_path):
+    from sela_ros.tools.build_archive import main
+
+    out, ckpt = tmp_path / 'a.npz', tmp_path / 'a_ck.pkl'
+    common = ['--synthetic', '--descriptor', '8d', '--cells', '30', '--batch-size', '50',
+              '--workers', '1', '--checkpoint', str(ckpt), '--no-progress', '--out', str(out)]
+    assert main([*common, '--evaluations', '300']) == 0
+    assert main([*common, '--evaluations', '400', '--resume', '--regrid', '120']) == 0
+    archive = load_archive(out)
+    assert archive.metadata['cells'] == 120 and archive.metadata['n_evaluations'] == 400
+    # The same --regrid again (a script that always passes it) changes nothing.
+    assert main([*common, '--evaluations', '450', '--resume', '--regrid', '120']) == 0
+    assert load_archive(out).metadata['cells'] == 120
+    with pytest.raises(SystemExit):  # coarser: refused
+        main([*common, '--evaluations', '500', '--resume', '--regrid', '60'])
+    with pytest.raises(SystemExit):  # a fresh run has nothing to regrid
+        main([*common, '--evaluations', '500', '--regrid', '200'])
+
+
 def test_the_nodes_never_import_the_map_builder_extras():
     # pyribs and Dask are offline extras (requirements-qd.txt): a robot needs neither.
     code = ('import sys\n'

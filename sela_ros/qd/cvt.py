@@ -69,7 +69,8 @@ def disc_samples(bounds: Sequence[Sequence[float]], n: int, rng: np.random.Gener
 
 
 def make_centroids(cells: int, bounds: Sequence[Sequence[float]], seed: int = 0,
-                   samples: int | None = None, disc: bool = True) -> np.ndarray:
+                   samples: int | None = None, disc: bool = True,
+                   iterations: int = 20) -> np.ndarray:
     """``(cells, d)`` CVT centroids: k-means (pyribs) over :func:`disc_samples`.
 
     Args:
@@ -78,6 +79,7 @@ def make_centroids(cells: int, bounds: Sequence[Sequence[float]], seed: int = 0,
         seed: seed of the samples and of k-means.
         samples: points k-means runs over (default ``max(5 cells, 20000)``).
         disc: sample the first two dimensions in their inscribed disc (else the box).
+        iterations: Lloyd iterations of k-means.
     """
     from ribs.archives import k_means_centroids
 
@@ -89,7 +91,7 @@ def make_centroids(cells: int, bounds: Sequence[Sequence[float]], seed: int = 0,
     # 20 Lloyd iterations: the cells need not be perfectly even, and 20,000 of them over
     # 100,000 samples then take minutes on one core, not the better part of an hour.
     centroids = k_means_centroids(centroids=cells, ranges=bounds.tolist(), samples=points,
-                                  seed=seed, k_means_kwargs={'max_iter': 20})
+                                  seed=seed, k_means_kwargs={'max_iter': int(iterations)})
     if isinstance(centroids, tuple):  # some versions also return the samples
         centroids = centroids[0]
     return np.asarray(centroids, dtype=np.float64)
@@ -255,6 +257,56 @@ class CVTMapElites(MapElites):
         run.config = dict(state['config'])
         run.seed = int(run.config['seed'])
         return run._resumed(state)
+
+    def regrid(self, centroids) -> int:
+        """Go on in a finer CVT: a new archive on ``centroids`` (more cells than now), every
+        elite found so far carried into it (no evaluation is lost or repeated; two elites
+        that fall in one new cell keep the better), and new iso-line emitters over it.
+
+        A CVT of ``k`` cells in 8-D fills slowly once its reachable cells are taken; more
+        cells keep the same evaluations finding new elites. The emitters are seeded from the
+        run's seed and batch count, so a run regridded at the same point is the same run.
+
+        Returns:
+            The number of elites in the new archive.
+
+        Raises:
+            ValueError: ``centroids`` of another dimension, or not more cells than now.
+        """
+        CVTArchive, IsoLineEmitter, Scheduler = _ribs()
+        old = self.scheduler.archive
+        centroids = np.asarray(centroids, dtype=np.float64)
+        if centroids.ndim != 2 or centroids.shape[1] != self.bounds.shape[0]:
+            raise ValueError(f'centroids must be (cells, {self.bounds.shape[0]}), got '
+                             f'{centroids.shape}')
+        if len(centroids) <= old.cells:
+            raise ValueError(f'a regrid takes more cells than the {old.cells} of the run, got '
+                             f'{len(centroids)}')
+        c = self.config
+        seeds = np.random.SeedSequence([c['seed'], self.n_batches]).generate_state(
+            c['emitters'] + 1)
+        archive = CVTArchive(solution_dim=old.solution_dim, centroids=centroids,
+                             ranges=self.bounds.tolist(), seed=int(seeds[0]),
+                             learning_rate=1.0, threshold_min=THRESHOLD_MIN,
+                             extra_fields={'generic_reward': ((3,), np.float64)})
+        data = old.data(['solution', 'objective', 'measures', 'generic_reward'])
+        if len(data['objective']):
+            archive.add(data['solution'], data['objective'], data['measures'],
+                        generic_reward=data['generic_reward'])
+        emitters = [IsoLineEmitter(archive, iso_sigma=c['iso_sigma'], line_sigma=c['line_sigma'],
+                                   bounds=[(0.0, 1.0)] * old.solution_dim,
+                                   batch_size=c['batch_size'], seed=int(s),
+                                   initial_solutions=np.random.default_rng(int(s)).random(
+                                       (c['n_initial'], old.solution_dim)))
+                   for s in seeds[1:]]
+        self.scheduler = Scheduler(archive, emitters)
+        self.archive = archive
+        self._pending = None
+        self.info.setdefault('regrids', []).append(
+            {'at_evaluations': self.n_evaluations, 'from_cells': int(old.cells),
+             'to_cells': int(archive.cells), 'elites_before': int(old.stats.num_elites),
+             'elites_after': int(archive.stats.num_elites)})
+        return int(archive.stats.num_elites)
 
     def to_archive(self, **metadata: Any) -> Archive:
         """The elites as an :class:`~sela_ros.core.archive.Archive`, centroids included.

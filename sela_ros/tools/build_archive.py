@@ -8,11 +8,12 @@ Example (the shipped archive, see docs/archive.md)::
 The paper's 8-D map (final x, y + six duty factors, a CVT archive built with pyribs from
 ``requirements-qd.txt``, physics ``sim_bridge.settings.FAST_SETTINGS``)::
 
-    sela-build-archive --descriptor 8d --cells 20000 --evaluations 100000 --workers 1 \\
+    sela-build-archive --descriptor 8d --cells 60000 --evaluations 100000 --workers 1 \\
         --checkpoint /work/mapbuild/map8d.checkpoint.pkl --out /work/mapbuild/map8d.npz
 
-(``scripts/build_map8d.sh``; 20,000 cells because part of the 8-D box holds (x, y, duty)
-combinations no gait reaches, and the map should hold 10,000 elites or more.)
+(``scripts/build_map8d.sh``; 60,000 cells because part of the 8-D box holds (x, y, duty)
+combinations no gait reaches, and the map should hold 10,000 elites or more; ``--resume
+--regrid CELLS`` moves a run to a finer CVT, its elites carried over.)
 
 Before it starts, it times a few gaits here and prints how long the run will take. It
 checkpoints every ``--checkpoint-every`` batches (journalling the batches in between); after
@@ -95,6 +96,10 @@ def make_parser() -> argparse.ArgumentParser:
                              'on a CVT archive (pyribs, the paper\'s map; default 2d)')
     parser.add_argument('--cells', type=_positive_int, default=10000,
                         help='CVT cells of the 8d map (default 10000)')
+    parser.add_argument('--regrid', type=_positive_int, default=None, metavar='CELLS',
+                        help='with --resume (8d): go on in a finer CVT of CELLS cells, every '
+                             'elite found so far carried into it; nothing happens when the '
+                             'run already has CELLS cells')
     parser.add_argument('--emitters', type=_positive_int, default=1,
                         help='iso-line emitters of the 8d map; a batch is emitters x '
                              'batch-size gaits (default 1)')
@@ -134,6 +139,8 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
     if (args.resume or args.export) and not _checkpoint_path(args).exists():
         option = '--export' if args.export else '--resume'
         parser.error(f'{option}: no checkpoint at {_checkpoint_path(args)}')
+    if args.regrid is not None and (args.descriptor != '8d' or not args.resume):
+        parser.error('--regrid takes an 8d run to resume: add --descriptor 8d --resume')
     args.resume = args.resume or args.export
     if args.out.suffix != '.npz':
         parser.error(f'--out must end in .npz, got {args.out}')
@@ -237,6 +244,29 @@ def _new_cvt_run(args, evaluate, executor, checkpoint: Path):
                         checkpoint_every=args.checkpoint_every)
 
 
+def _regrid(parser, run, cells: int, seed: int) -> None:
+    """``--regrid``: the resumed 8-D run goes on in a CVT of ``cells`` cells (written to its
+    checkpoint at once, so that the next resume starts from it)."""
+    from sela_ros.qd.cvt import XY_DUTY_BOUNDS, make_centroids
+
+    current = int(run.scheduler.archive.cells)
+    if cells == current:
+        return
+    if cells < current:
+        parser.error(f'--regrid {cells}: the run has {current} cells already; a coarser CVT '
+                     'would drop elites')
+    start = time.perf_counter()
+    # Fewer samples and Lloyd iterations than a fresh run's: minutes, not an hour, for tens
+    # of thousands of cells (the cells need not be perfectly even).
+    centroids = make_centroids(cells, XY_DUTY_BOUNDS, seed=seed, samples=2 * cells,
+                               iterations=10)
+    before = run.progress_info()
+    elites = run.regrid(centroids)
+    run.save_checkpoint()
+    print(f'regridded from {current} to {cells} cells ({time.perf_counter() - start:.0f} s): '
+          f'{before["elites"]} elites carried into {elites} cells', flush=True)
+
+
 def _exit_on_sigterm(signum, frame):
     # Unwind through `finally` so the worker pool is shut down, not orphaned.
     sys.exit(128 + signum)
@@ -292,6 +322,8 @@ def main(argv: list[str] | None = None) -> int:
                              f'settings {stored}, this run uses {settings}; start afresh')
             print(f'resuming from {checkpoint}: {run.n_evaluations} evaluations done, '
                   f'{run.progress_info()}', flush=True)
+            if args.regrid is not None and not args.export:
+                _regrid(parser, run, args.regrid, args.seed)
         elif args.descriptor == '8d':
             run = _new_cvt_run(args, evaluate, executor, checkpoint)
             run.info = {'settings': settings, 'seed': args.seed}
