@@ -259,9 +259,10 @@ class CVTMapElites(MapElites):
         return run._resumed(state)
 
     def regrid(self, centroids) -> int:
-        """Go on in a finer CVT: a new archive on ``centroids`` (more cells than now), every
-        elite found so far carried into it (no evaluation is lost or repeated; two elites
-        that fall in one new cell keep the better), and new iso-line emitters over it.
+        """Go on in a finer CVT: a new archive on ``centroids`` (more cells than now), the
+        elites found so far carried into it (nothing is evaluated again; in 8-D, elites of
+        neighbouring cells often fall in one new cell, which keeps the better), and new
+        iso-line emitters over it.
 
         A CVT of ``k`` cells in 8-D fills slowly once its reachable cells are taken; more
         cells keep the same evaluations finding new elites. The emitters are seeded from the
