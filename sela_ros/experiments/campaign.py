@@ -72,6 +72,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         default=hexapod.DEFAULT_LOOKAHEAD, help='waypoint distance (m)')
     parser.add_argument('--fall-risk', type=arguments.positive_float, default=None,
                         help='fall.risk.threshold of SELA (default: its default)')
+    parser.add_argument('--kernel-sigma', type=arguments.positive_float, default=None,
+                        help='gp.kernel.sigma on normalised descriptors (default: its default, '
+                             'the paper\'s 0.1 for the 2-D map)')
     parser.add_argument('--max-steps', type=arguments.positive_int, default=100)
     parser.add_argument('--oracle-cache', default=None,
                         help='directory of cached oracle tables')
@@ -104,7 +107,8 @@ def run(args, progress=None) -> dict:
                 if not path.exists():
                     cell_args = SimpleNamespace(
                         archive=archive, damage=damage, goal=goal, noise_std=args.noise_std,
-                        lookahead=args.lookahead, kernel_sigma=SELAConfig().gp_kernel_sigma,
+                        lookahead=args.lookahead,
+                        kernel_sigma=args.kernel_sigma or SELAConfig().gp_kernel_sigma,
                         alpha=SELAConfig().acquisition_ucb_alpha,
                         fall_risk=args.fall_risk or SELAConfig().fall_risk_threshold,
                         methods=args.methods, max_steps=args.max_steps,
