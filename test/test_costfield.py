@@ -47,8 +47,7 @@ def test_field_costs_equal_astar_costs_on_random_grids(seed):
     occ = _random_grid(rng, size, rng.uniform(0.0, 0.4))
     grid = OccupancyGrid(occ, 0.1)
     free_cells = np.argwhere(~occ)
-    if len(free_cells) < 2:
-        pytest.skip('no room')
+    assert len(free_cells) >= 2  # the seeds give grids with room (never skipped)
     graph = grid_graph(~occ)
     for _ in range(4):
         gy, gx = free_cells[rng.integers(len(free_cells))]

@@ -1,4 +1,7 @@
-"""The 8-D CVT map (pyribs): build, checkpoint/journal resume, carried checkpoints, archives."""
+"""The 8-D CVT map (pyribs): build, checkpoint/journal resume, carried checkpoints, archives.
+
+pyribs is a map-builder extra (requirements-qd.txt) that `make venv` installs: without it
+these tests fail, they never skip."""
 import os
 import shutil
 import signal
@@ -11,12 +14,9 @@ import numpy as np
 import pytest
 
 from sela_ros.core.archive import Archive, ArchiveError, load_archive
+from sela_ros.qd.cvt import XY_DUTY_BOUNDS, CVTMapElites, disc_samples, make_centroids
 from sela_ros.qd.evaluators import EvaluationResult, SyntheticEvaluator
 from sela_ros.qd.executors import SerialEvaluator
-
-pytest.importorskip('ribs', reason='the map builder extras: pip install -r requirements-qd.txt')
-
-from sela_ros.qd.cvt import XY_DUTY_BOUNDS, CVTMapElites, disc_samples, make_centroids  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 EIGHT_D = SyntheticEvaluator(descriptor='final_xy_duty_factors')
