@@ -27,12 +27,32 @@ def test_one_fall_raises_the_risk_of_similar_gaits_only():
     near = np.linalg.norm(c - c[fell], axis=1)
     assert r[fell] > 0.95
     assert np.all(r[(near > 0) & (near < 0.06)] > 0.5)
-    assert np.all(r[near > 0.4] < 0.01)
+    # Far from it, the robot's fall rate so far (1 fall in 1 step, 3 safe steps assumed):
+    # below the default threshold, so those gaits are still tried.
+    assert risk.base_rate == pytest.approx(0.25)
+    np.testing.assert_allclose(r[near > 0.4], 0.25, atol=0.01)
     # A gait that did not fall lowers the risk around it again.
     other = int(np.argmin(np.linalg.norm(c - [0.55, 0.5], axis=1)))
     before = r[other]
     risk.tell(other, False)
     assert risk.risk()[other] < before
+
+
+def test_a_robot_that_keeps_falling_keeps_to_the_gaits_seen_upright():
+    c = _grid()
+    risk = FallRisk(c, sigma=0.1)
+    safe = int(np.argmin(np.linalg.norm(c - [0.2, 0.2], axis=1)))
+    risk.tell(safe, False)
+    for corner in ([1.0, 1.0], [0.0, 1.0], [1.0, 0.0]):  # three new gaits, three falls
+        risk.tell(int(np.argmin(np.linalg.norm(c - corner, axis=1))), True)
+    assert risk.base_rate == pytest.approx(3 / 7)
+    r = risk.risk()
+    near_safe = np.linalg.norm(c - c[safe], axis=1) < 0.05
+    untried = np.linalg.norm(c - [0.6, 0.5], axis=1) < 0.05
+    assert np.all(r[near_safe] < 0.3) and r[safe] < 0.01
+    assert np.all(r[untried] > 0.3)  # not tried any more at the default threshold
+    chosen = np.argmax(safe_choice(c[:, 0], r, 0.3))  # the score pulls toward x = 1
+    assert np.linalg.norm(c[chosen] - c[safe]) < 0.2  # within the kernel's reach of it
 
 
 def test_prior_fall_rates_are_checked():

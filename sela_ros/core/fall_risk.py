@@ -8,6 +8,15 @@ gait is trusted. One fall raises the risk of every gait whose descriptor is clos
 that fell, which is the point of the paper's 8-D descriptor: gaits that lean on the same leg
 (similar duty factors) share the risk, and SELA stops trying them one at a time.
 
+What is learnt near one gait says nothing about gaits far from every observed one; for those
+the risk is the robot's own fall rate so far, ``falls / (steps + SAFE_PSEUDO_STEPS)``, not
+zero. On a robot that falls at almost every new gait (two legs removed: about 4 random gaits
+in 10 flip it over) the untried gaits then soon count as too risky and SELA keeps to the gaits
+it has seen stay upright and to their neighbours; on a robot that rarely falls the rate stays
+low and nothing changes. In the GP this is a prior mean ``c`` that moves with the evidence:
+the posterior mean is linear in the prior, ``mu_c = mu_0 + c (1 - k^T K^-1 1)``, so a second
+output observed as 1 everywhere gives ``k^T K^-1 1`` at no extra solve.
+
 The acquisition keeps away from gaits whose predicted risk is above ``fall.risk.threshold``
 (the risk accepted). The GP is a regression on a 0/1 label, not a classifier: its mean,
 clipped to [0, 1], is a smooth, cheap (one rank-one update per step, as the generic-reward
@@ -21,6 +30,9 @@ from sela_ros.core.gp import CandidateSetGP
 
 #: Risk accepted by default: gaits predicted to fall more often than this are not tried.
 DEFAULT_THRESHOLD = 0.3
+#: Steps without a fall assumed before any is seen, in the fall rate of untried gaits: one fall
+#: in the first step gives them 0.25 (still tried at the default threshold), two in a row 0.4.
+SAFE_PSEUDO_STEPS = 3
 
 
 class FallRisk:
@@ -49,25 +61,32 @@ class FallRisk:
     def reset(self) -> None:
         """Forget every observed fall: back to the prior."""
         candidates, prior, sigma, variance, noise = self._args
-        self._gp = CandidateSetGP(candidates, prior, sigma=sigma, variance=variance,
-                                  noise=noise)
+        # Outputs: the fall (prior: the map's rate) and a constant 1 (prior 0), whose mean
+        # k^T K^-1 1 says how much each gait is covered by what was observed.
+        self._gp = CandidateSetGP(candidates, np.column_stack([prior, np.zeros_like(prior)]),
+                                  sigma=sigma, variance=variance, noise=noise)
         self.falls = 0
 
     def tell(self, index: int, fallen: bool) -> None:
         """Learn whether gait ``index`` ended with the robot fallen."""
-        self._gp.add_sample(index, [1.0 if fallen else 0.0])
+        self._gp.add_sample(index, [1.0 if fallen else 0.0, 1.0])
         self.falls += bool(fallen)
+
+    @property
+    def base_rate(self) -> float:
+        """The robot's fall rate so far, the risk of a gait far from every observed one."""
+        return self.falls / (len(self._gp.indices) + SAFE_PSEUDO_STEPS)
 
     def risk(self) -> np.ndarray:
         """Predicted risk of falling of every gait, ``(M,)`` in ``[0, 1]``."""
         mu, _ = self._gp.query_columns()
-        return np.clip(mu[0], 0.0, 1.0)
+        return np.clip(mu[0] + self.base_rate * (1.0 - mu[1]), 0.0, 1.0)
 
     @property
     def observations(self):
         """``(indices (N,), fallen (N,) bool)`` told so far."""
         return (np.array(self._gp.indices, dtype=int),
-                self._gp.observed.reshape(-1) > 0.5)
+                self._gp.observed[:, 0] > 0.5)
 
 
 def safe_choice(scores, risk, threshold) -> np.ndarray:
