@@ -41,3 +41,16 @@ def test_campaign_writes_a_table_per_damage_and_resumes(tmp_path):
     rows = json.loads((tmp_path / 'results.json').read_text())['table']
     front = [r for r in rows if r['damage'] == 'remove:front_left'][0]
     assert 77 in front['steps']
+
+
+def test_goals_with_negative_coordinates_are_taken_as_written_in_the_docs():
+    from sela_ros.experiments.cli import build_parser
+
+    args = build_parser().parse_args(['campaign', '--replicates', '1', '--out', 'x',
+                                      '--goals', '2,2', '-2,1.5', '1.5,-2', '--kernel-sigma',
+                                      '0.3'])
+    assert [tuple(g) for g in args.goals] == [(2, 2), (-2, 1.5), (1.5, -2)]
+    assert args.kernel_sigma == 0.3
+    args = build_parser().parse_args(['hexapod', '--replicates', '1', '--out', 'x',
+                                      '--goal', '-0.5,-1'])
+    assert tuple(args.goal) == (-0.5, -1)
