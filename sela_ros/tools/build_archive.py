@@ -8,7 +8,7 @@ Example (the shipped archive, see docs/archive.md)::
 The paper's 8-D map (final x, y + six duty factors, a CVT archive built with pyribs from
 ``requirements-qd.txt``, physics ``sim_bridge.settings.FAST_SETTINGS``)::
 
-    sela-build-archive --descriptor 8d --cells 60000 --evaluations 100000 --workers 1 \\
+    sela-build-archive --descriptor 8d --cells 60000 --evaluations 200000 --workers 1 \\
         --checkpoint /work/mapbuild/map8d.checkpoint.pkl --out /work/mapbuild/map8d.npz
 
 (``scripts/build_map8d.sh``; 60,000 cells because part of the 8-D box holds (x, y, duty)
