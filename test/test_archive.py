@@ -213,3 +213,27 @@ def test_shipped_archive_is_valid():
         return
     load_archive(path, expected_settings=simulator_settings(archive.metadata['dt'],
                                                             archive.metadata['gait_duration']))
+
+
+def test_kernel_length_is_the_maps_own_and_sela_takes_it_unless_told_otherwise():
+    from sela_ros.core.learning import make_sela
+
+    flat = _archive()
+    assert flat.kernel_sigma == 0.1  # the paper's, for a 2-D map
+    rng = np.random.default_rng(1)
+    meta = dict(flat.metadata, descriptor_bounds=[[-1, 1], [-1, 1]] + [[0, 1]] * 6)
+    eight = Archive(params=flat.params, descriptors=rng.random((len(flat), 8)),
+                    generic_reward=flat.generic_reward, fitness=flat.fitness, metadata=meta)
+    assert eight.kernel_sigma == 0.3
+    said = Archive(params=flat.params, descriptors=eight.descriptors,
+                   generic_reward=flat.generic_reward, fitness=flat.fitness,
+                   metadata=dict(meta, gp_kernel_sigma=0.25))
+    assert said.kernel_sigma == 0.25
+    for bad in (0, -1, 'x', float('nan'), True):  # unusable metadata: the default for 8-D
+        assert Archive(params=flat.params, descriptors=eight.descriptors,
+                       generic_reward=flat.generic_reward, fitness=flat.fitness,
+                       metadata=dict(meta, gp_kernel_sigma=bad)).kernel_sigma == 0.3
+    # The node's default (0), or no value, is the archive's; a value given is kept.
+    assert make_sela(eight, {'gp.kernel.sigma': 0.0}).config.gp_kernel_sigma == 0.3
+    assert make_sela(flat, {}).config.gp_kernel_sigma == 0.1
+    assert make_sela(eight, {'gp.kernel.sigma': 0.2}).config.gp_kernel_sigma == 0.2

@@ -188,7 +188,7 @@ def test_run_mission_drives_the_stepper_to_the_goal_and_resets_a_fallen_robot():
     falls = int(np.argmin(np.hypot(grs[:, 0] - 0.3, grs[:, 1])))
     params = np.zeros((40, 36))
     params[:, 0] = np.arange(40)
-    archive = SimpleNamespace(params=params, generic_reward=grs,
+    archive = SimpleNamespace(params=params, generic_reward=grs, kernel_sigma=0.1,
                               normalised_descriptors=lambda: descriptors)
     robot = _FakeRobot(grs, falls)
     steps = []

@@ -60,6 +60,13 @@ _REBUILD_HINT = (
 )
 
 
+#: Kernel length (on normalised descriptors) that suits a map with no ``gp_kernel_sigma`` in
+#: its metadata: the paper's 0.1 for a 2-D map; 0.3 in higher dimensions, where 0.1 links far
+#: fewer gaits (measured on the 8-D map: docs/archive.md, "Kernel length for the 8-D map").
+KERNEL_SIGMA_2D = 0.1
+KERNEL_SIGMA_HIGHER = 0.3
+
+
 class ArchiveError(ValueError):
     """An archive file or object is unusable: corrupt, incomplete or built for other settings."""
 
@@ -132,6 +139,17 @@ class Archive:
     def descriptor_bounds(self) -> np.ndarray:
         """``(d, 2)`` lower and upper bound of each descriptor dimension (from metadata)."""
         return np.asarray(self.metadata['descriptor_bounds'], dtype=np.float64)
+
+    @property
+    def kernel_sigma(self) -> float:
+        """The GP kernel length this map is meant to be used with: its metadata's
+        ``gp_kernel_sigma``, else :data:`KERNEL_SIGMA_2D` for a 2-D map and
+        :data:`KERNEL_SIGMA_HIGHER` for more descriptor dimensions."""
+        value = self.metadata.get('gp_kernel_sigma')
+        if isinstance(value, (int, float)) and not isinstance(value, bool) \
+                and math.isfinite(value) and value > 0:
+            return float(value)
+        return KERNEL_SIGMA_2D if self.descriptors.shape[1] <= 2 else KERNEL_SIGMA_HIGHER
 
     @property
     def simulator_settings(self) -> dict:

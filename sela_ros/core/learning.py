@@ -11,9 +11,15 @@ from sela_ros.core.stepper_io import StepRecord
 
 
 def make_sela(archive, config=None):
-    """A SE(2) SELA over the archive's behaviours (prior mean: the intact robot's GR)."""
+    """A SE(2) SELA over the archive's behaviours (prior mean: the intact robot's GR).
+
+    ``gp.kernel.sigma`` left out of ``config`` (or 0) is the archive's own
+    (:attr:`~sela_ros.core.archive.Archive.kernel_sigma`)."""
+    config = dict(config or {})
+    if not config.get('gp.kernel.sigma'):
+        config['gp.kernel.sigma'] = archive.kernel_sigma
     return SELA(archive.normalised_descriptors(), archive.generic_reward, SE2Motion(),
-                config=SELAConfig.from_dict(dict(config or {})))
+                config=SELAConfig.from_dict(config))
 
 
 #: What a detection does to what was learned while adapting (``adaptation.on_detection``).

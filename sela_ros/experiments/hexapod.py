@@ -106,10 +106,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--lookahead', type=arguments.positive_float, default=DEFAULT_LOOKAHEAD,
                         help='reward selection layer: waypoint distance along the straight '
                              'path to the goal (m, default %(default)s)')
-    parser.add_argument('--kernel-sigma', type=arguments.positive_float,
-                        default=SELAConfig().gp_kernel_sigma,
-                        help="gp.kernel.sigma on normalised descriptors (default %(default)s, "
-                             "the paper's)")
+    parser.add_argument('--kernel-sigma', type=arguments.positive_float, default=None,
+                        help="gp.kernel.sigma on normalised descriptors (default: the "
+                             "archive's: 0.1, the paper's, for the 2-D map; 0.3 for the 8-D "
+                             "map)")
     parser.add_argument('--alpha', type=arguments.non_negative_float,
                         default=SELAConfig().acquisition_ucb_alpha,
                         help="acquisition.ucb.alpha (default %(default)s, the paper's)")
@@ -146,7 +146,7 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
     defaults = SELAConfig()
     config = SELAConfig(planner_lookahead=lookahead,
                         fall_risk_threshold=fall_risk or defaults.fall_risk_threshold,
-                        gp_kernel_sigma=kernel_sigma or defaults.gp_kernel_sigma,
+                        gp_kernel_sigma=kernel_sigma or archive.kernel_sigma,
                         acquisition_ucb_alpha=defaults.acquisition_ucb_alpha if alpha is None
                         else alpha)
     return Problem(
@@ -312,7 +312,7 @@ def run(args, progress=None) -> dict:
                            'inflation': inflation if map_path else None,
                            'goal_eps': SELAConfig().goal_eps,
                            'ite_max_iterations': args.ite_iterations,
-                           'gp.kernel.sigma': args.kernel_sigma,
+                           'gp.kernel.sigma': args.kernel_sigma or archive.kernel_sigma,
                            'acquisition.ucb.alpha': args.alpha,
                            'fall.risk.threshold': args.fall_risk,
                            'archive': os.path.abspath(args.archive),

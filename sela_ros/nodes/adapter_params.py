@@ -8,8 +8,9 @@ from sela_ros.nodes.params import Spec
 PARAMETERS = (
     Spec('archive', '', "the MAP-Elites archive (.npz); '' = the one shipped with the package; "
          'can change between steps'),
-    Spec('gp.kernel.sigma', 0.1, 'kernel length on normalised descriptors', low=1e-6,
-         high=100.0, read_only=True),
+    Spec('gp.kernel.sigma', 0.0, "kernel length on normalised descriptors; 0 = the archive's "
+         '(0.1, the paper\'s, for a 2-D map; 0.3 for the 8-D map)', low=0.0, high=100.0,
+         read_only=True),
     Spec('gp.noise', 0.001, 'GP noise variance', low=0.0, high=100.0, read_only=True),
     Spec('acquisition.ucb.alpha', 0.05, 'UCB exploration weight', low=0.0, high=100.0,
          read_only=True),

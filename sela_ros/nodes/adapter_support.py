@@ -25,7 +25,9 @@ def use_archive(node, path):
     node.archive, node.archive_path = archive, path
     node.stepper = _new_stepper(node, archive)
     node.sim_check.use(archive, path)
-    node.get_logger().info(f'archive {path}: {len(archive)} behaviours')
+    node.get_logger().info(f'archive {path}: {len(archive)} behaviours, '
+                           f'{archive.descriptors.shape[1]}-D descriptors, kernel length '
+                           f'{node.stepper.sela.config.gp_kernel_sigma:g}')
     if old is not None:
         node.stepper.next_id = old.next_id  # command ids stay unique across archives
     if old is not None and old.goal is not None and old.state is not io.State.DONE:
