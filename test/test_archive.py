@@ -237,3 +237,26 @@ def test_kernel_length_is_the_maps_own_and_sela_takes_it_unless_told_otherwise()
     assert make_sela(eight, {'gp.kernel.sigma': 0.0}).config.gp_kernel_sigma == 0.3
     assert make_sela(flat, {}).config.gp_kernel_sigma == 0.1
     assert make_sela(eight, {'gp.kernel.sigma': 0.2}).config.gp_kernel_sigma == 0.2
+
+
+def test_an_8d_map_gives_the_fall_model_its_support_and_its_own_fall_kernel():
+    from sela_ros.core.learning import make_sela
+
+    flat = _archive()
+    assert flat.stability is None and flat.fall_kernel_sigma == 0.1
+    rng = np.random.default_rng(2)
+    meta = dict(flat.metadata, descriptor_bounds=[[-1, 1], [-1, 1]] + [[0, 1]] * 6,
+                descriptor_name='final_xy_duty_factors')
+    eight = Archive(params=flat.params, descriptors=rng.random((len(flat), 8)),
+                    generic_reward=flat.generic_reward, fitness=flat.fitness, metadata=meta)
+    # Support: the sum of the six duty factors (the mean number of feet on the ground).
+    np.testing.assert_allclose(eight.stability, eight.descriptors[:, 2:].sum(axis=1))
+    assert eight.fall_kernel_sigma == 0.12
+    other = Archive(params=flat.params, descriptors=eight.descriptors,
+                    generic_reward=flat.generic_reward, fitness=flat.fitness,
+                    metadata=dict(meta, descriptor_name='something_else', fall_kernel_sigma=0.2))
+    assert other.stability is None and other.fall_kernel_sigma == 0.2
+    sela = make_sela(eight, {'fall.kernel.sigma': 0.0})
+    assert sela.config.fall_kernel_sigma == 0.12
+    assert sela.fall_risk.support_model is not None
+    assert make_sela(flat, {}).fall_risk.support_model is None

@@ -114,3 +114,70 @@ def test_falls_survive_a_restart_of_adaptation_and_a_state_round_trip():
     assert copy.fall_risk.falls == 0
     sela.forget_falls()
     assert np.all(sela.fall_risk.risk() == 0.0)
+
+
+def _supported(n=400, seed=3):
+    """Gaits in 2-D with a support feature unrelated to where they are."""
+    rng = np.random.default_rng(seed)
+    return rng.random((n, 2)), rng.uniform(1.5, 4.5, n)
+
+
+def test_support_orders_the_risk_before_any_fall_and_falls_rule_out_the_least_supported():
+    c, support = _supported()
+    risk = FallRisk(c, sigma=0.05, stability=support)
+    r0 = risk.risk()
+    low, high = support < 2.0, support > 4.0
+    assert r0[low].min() > r0[high].max()  # less support, more risk, with no evidence yet
+    assert r0[high].max() < 0.05 and r0.max() < 0.5
+    # Three falls on poorly supported gaits, eight steps upright on well supported ones.
+    fell = np.flatnonzero(support < 1.9)[:3]
+    upright = np.flatnonzero(support > 3.5)[:8]
+    for i in upright[:4]:
+        risk.tell(i, False)
+    for i in fell:
+        risk.tell(i, True)
+    for i in upright[4:]:
+        risk.tell(i, False)
+    theta, beta = risk.support_model
+    r = risk.risk()
+    far = np.min(np.linalg.norm(c[:, None] - c[np.r_[fell, upright]][None], axis=2), axis=1) > 0.2
+    # Far from every gait tried: the poorly supported ones are now out at the default 0.3,
+    # the well supported ones still in.
+    assert np.all(r[far & (support < 2.0)] > 0.3)
+    assert np.all(r[far & (support > 4.0)] < 0.3)
+    assert np.all(r[fell] > 0.9)
+    assert beta > 1.0 and theta > -4.0
+    risk.reset()
+    np.testing.assert_allclose(risk.risk(), r0)
+
+
+def test_falls_that_support_does_not_explain_teach_a_flat_model():
+    c, support = _supported()
+    risk = FallRisk(c, sigma=0.05, stability=support)
+    prior_beta = risk.support_model[1]
+    # The best supported gaits fall as often as the worst: support says nothing here.
+    order = np.argsort(support)
+    for k in range(12):
+        risk.tell(order[k], k % 2 == 0)
+        risk.tell(order[-1 - k], k % 2 == 0)
+    assert risk.support_model[1] < prior_beta - 0.5
+
+
+def test_stability_is_checked():
+    with pytest.raises(ValueError, match='stability'):
+        FallRisk(_grid(3), stability=np.ones(4))
+    with pytest.raises(ValueError, match='stability'):
+        FallRisk(_grid(3), stability=np.full(9, np.nan))
+
+
+def test_sela_uses_the_fall_kernel_of_its_config():
+    c = _grid()
+    prior = np.tile([0.3, 0.0, 0.0], (len(c), 1))
+    wide = SELA(c, prior, SE2Motion(), config=SELAConfig(gp_kernel_sigma=0.3))
+    narrow = SELA(c, prior, SE2Motion(), config=SELAConfig(gp_kernel_sigma=0.3,
+                                                            fall_kernel_sigma=0.05))
+    for s in (wide, narrow):
+        s.tell_fall(0, True)
+    near = np.linalg.norm(c - c[0], axis=1)
+    ring = (near > 0.1) & (near < 0.2)
+    assert narrow.fall_risk.risk()[ring].max() < wide.fall_risk.risk()[ring].min()

@@ -65,6 +65,13 @@ _REBUILD_HINT = (
 #: fewer gaits (measured on the 8-D map: docs/archive.md, "Kernel length for the 8-D map").
 KERNEL_SIGMA_2D = 0.1
 KERNEL_SIGMA_HIGHER = 0.3
+#: Kernel length of the fall GP on a map of more than 2 dimensions: on the 8-D map a gait
+#: 0.2 away from one seen upright still falls almost as often as any (docs/archive.md).
+FALL_KERNEL_SIGMA_HIGHER = 0.12
+
+
+#: ``descriptor_name`` of the paper's 8-D map: final (x, y) then the six duty factors.
+DUTY_FACTOR_DESCRIPTOR = 'final_xy_duty_factors'
 
 
 class ArchiveError(ValueError):
@@ -150,6 +157,28 @@ class Archive:
                 and math.isfinite(value) and value > 0:
             return float(value)
         return KERNEL_SIGMA_2D if self.descriptors.shape[1] <= 2 else KERNEL_SIGMA_HIGHER
+
+    @property
+    def fall_kernel_sigma(self) -> float:
+        """The fall GP's kernel length for this map: metadata ``fall_kernel_sigma``, else
+        :data:`KERNEL_SIGMA_2D` for a 2-D map and :data:`FALL_KERNEL_SIGMA_HIGHER` for more
+        descriptor dimensions."""
+        value = self.metadata.get('fall_kernel_sigma')
+        if isinstance(value, (int, float)) and not isinstance(value, bool) \
+                and math.isfinite(value) and value > 0:
+            return float(value)
+        return KERNEL_SIGMA_2D if self.descriptors.shape[1] <= 2 else FALL_KERNEL_SIGMA_HIGHER
+
+    @property
+    def stability(self) -> np.ndarray | None:
+        """``(M,)`` what makes each gait less likely to tip a damaged robot over, for the
+        fall model (:class:`~sela_ros.core.fall_risk.FallRisk`): on a map whose descriptor
+        holds the six duty factors, the gait's support (their sum, the mean number of feet
+        on the ground); None for other maps."""
+        if self.metadata.get('descriptor_name') != DUTY_FACTOR_DESCRIPTOR \
+                or self.descriptors.shape[1] != 8:
+            return None
+        return self.descriptors[:, 2:8].sum(axis=1)
 
     @property
     def simulator_settings(self) -> dict:

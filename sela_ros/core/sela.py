@@ -80,11 +80,15 @@ class SELAConfig:
     goal_eps: float = 0.1
     # Risk of falling accepted (fall-aware acquisition); 1 or more: falls are not avoided.
     fall_risk_threshold: float = fall_risk.DEFAULT_THRESHOLD
+    # Kernel length of the fall GP (normalised descriptors); 0: gp.kernel.sigma. Falls are
+    # more local than displacements on the 8-D map (docs/archive.md), so maps set their own.
+    fall_kernel_sigma: float = 0.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             check_number(_dotted(f.name), getattr(self, f.name), low=0.0,
-                         low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise'))
+                         low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise',
+                                                 'fall_kernel_sigma'))
 
     @classmethod
     def keys(cls):
@@ -155,10 +159,13 @@ class SELA:
         config: :class:`SELAConfig` or a dict of dotted names.
         prior_fall_rate: ``(M,)`` fall rate of each behaviour on the robot the archive was
             built on (prior of :class:`~sela_ros.core.fall_risk.FallRisk`); None: zeros.
+        stability: ``(M,)`` a feature that makes a behaviour less likely to fall (the 8-D
+            hexapod map's support, :attr:`~sela_ros.core.archive.Archive.stability`): the
+            risk of untried behaviours is learnt as a logistic model of it; None: one rate.
     """
 
     def __init__(self, candidates_normalised, prior_gr, motion, planner: Callable | None
-                 = None, goal=None, config=None, prior_fall_rate=None):
+                 = None, goal=None, config=None, prior_fall_rate=None, stability=None):
         candidates = np.asarray(candidates_normalised, dtype=float)
         prior_gr = np.asarray(prior_gr, dtype=float)
         if candidates.ndim != 2:
@@ -177,6 +184,7 @@ class SELA:
         self._candidates = candidates
         self._prior = prior_gr
         self._prior_fall_rate = prior_fall_rate
+        self._stability = stability
         self.goal = None
         if goal is not None:
             self.set_goal(goal)
@@ -209,8 +217,9 @@ class SELA:
         """Forget every observed fall: back to the prior fall rates."""
         c = self.config
         self._fall = fall_risk.FallRisk(self._candidates, self._prior_fall_rate,
-                                        sigma=c.gp_kernel_sigma, variance=c.gp_kernel_variance,
-                                        noise=c.gp_noise)
+                                        sigma=c.fall_kernel_sigma or c.gp_kernel_sigma,
+                                        variance=c.gp_kernel_variance,
+                                        noise=c.gp_noise, stability=self._stability)
 
     def set_goal(self, goal) -> None:
         goal = np.asarray(goal, dtype=float).reshape(-1)
@@ -256,7 +265,8 @@ class SELA:
         sigma = np.sqrt(var)
         scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
         risk = self._fall.risk()
-        if self._fall.falls or self._prior_fall_rate is not None:
+        if self._fall.falls or self._prior_fall_rate is not None \
+                or self._stability is not None:
             scores = fall_risk.safe_choice(scores, risk, self.config.fall_risk_threshold)
         index = int(np.argmax(scores))
         gr = mu_t[:, index].copy()

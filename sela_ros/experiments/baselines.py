@@ -80,6 +80,7 @@ class Problem:
             behaviour is below this (metres).
         babbling_max_iterations: random babbling trials at most (15).
         uncertainty_iterations: trials of ``ite_uncertainty`` (15).
+        stability: ``(M,)`` the fall model's stability feature (SELA's ``stability``).
     """
 
     candidates: np.ndarray
@@ -97,10 +98,11 @@ class Problem:
     babbling_eps_model: float = 0.01
     babbling_max_iterations: int = 15
     uncertainty_iterations: int = 15
+    stability: np.ndarray | None = None
 
     def make_sela(self) -> SELA:
         return SELA(self.candidates, self.prior_gr, self.motion, planner=self.planner,
-                    goal=self.goal, config=self.config)
+                    goal=self.goal, config=self.config, stability=self.stability)
 
     def targets(self) -> np.ndarray:
         if self.ite_targets is not None:

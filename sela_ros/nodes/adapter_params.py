@@ -18,6 +18,8 @@ PARAMETERS = (
          unit=' m', read_only=True),
     Spec('fall.risk.threshold', 0.3, 'risk of falling accepted: gaits predicted riskier are '
          'not tried (1: no avoidance)', low=0.0, high=1.0, read_only=True),
+    Spec('fall.kernel.sigma', 0.0, "kernel length of the fall GP; 0 = the archive's (0.1 for a "
+         '2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, read_only=True),
     Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
     Spec('detector_timeout', 2.0, "wall time to wait for the detector's verdict on an outcome",
          low=0.001, high=3600.0, unit=' s'),
@@ -43,7 +45,7 @@ PARAMETERS = (
          read_only=True),
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
-             'fall.risk.threshold')
+             'fall.risk.threshold', 'fall.kernel.sigma')
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
