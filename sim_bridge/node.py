@@ -5,8 +5,9 @@ Publishes ``/clock`` (it owns sim time), ``/hexapod/odom`` (odom -> base_link),
 exactly one ``/hexapod/behavior_outcome`` carrying the command's id; serves
 ``/sim_bridge/reset``. ``damage`` can be changed at run time with ``ros2 param set``.
 The physics (``sim.dt``, ``sim.gait_duration``, ``sim.solver_iterations``) are those stamped
-in the ``archive`` parameter's file when it names one: a map's gaits only do in simulation
-what the map says with the settings it was built with.
+in the ``archive`` parameter's file ('' = the archive shipped with the package, the one the
+adapter serves by default; ``none`` = the ``sim.*`` values as given): a map's gaits only do in
+simulation what the map says with the settings it was built with.
 
 Gaits run on a worker thread that owns the simulator, so the node's single-threaded
 executor keeps answering services, parameters and subscriptions while the robot walks.
@@ -62,7 +63,9 @@ PARAMETERS = (
          'solver iterations per step; must match the archive', low=1, high=1000,
          read_only=True),
     Spec('archive', '', 'an archive file whose stamped physics (dt, gait duration, solver '
-         'iterations) replace the sim.* values; "" = use them', read_only=True),
+         'iterations) replace the sim.* values; "" = the shipped archive (as the adapter), '
+         '"8d"/"2d" = the shipped ones by name, "none" = use the sim.* values',
+         read_only=True),
     Spec('sim.gui', False, "PyBullet's window", read_only=True),
     Spec('publish_period', 0.5, 'sim time between state messages (/clock, odom, joint states, '
          '/tf) during a gait', low=0.001, high=60.0, unit=' s'),
@@ -134,19 +137,25 @@ class SimBridge(Node):
         """
         from rclpy.parameter import Parameter
 
+        from sela_ros.core.archive import resolve_archive_path
+
         overrides = getattr(self, '_parameter_overrides', None)
-        archive = overrides.get('archive') if isinstance(overrides, dict) else None
-        if archive is None or not isinstance(archive.value, str) or not archive.value:
+        if not isinstance(overrides, dict):
             return
+        archive = overrides.get('archive')
+        value = archive.value if archive is not None else ''
+        if not isinstance(value, str) or value.strip().lower() == 'none':
+            return  # a wrongly typed archive is reported when the parameter is declared
+        path = resolve_archive_path(value)
         try:
-            settings = read_archive_settings(archive.value)
+            settings = read_archive_settings(path)
         except ValueError as exc:
             self.get_logger().error(f'parameter archive: {exc}; using the sim.* parameters')
             return
         for name, key in (('sim.dt', 'dt'), ('sim.gait_duration', 'gait_duration'),
                           ('sim.solver_iterations', 'solver_iterations')):
             overrides[name] = Parameter(name, value=settings[key])
-        self.get_logger().info(f'physics of archive {archive.value}: {settings}')
+        self.get_logger().info(f'physics of archive {path}: {settings}')
 
     # --- callbacks (short: they only validate and enqueue) -------------------------------
 

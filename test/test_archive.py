@@ -197,8 +197,11 @@ def test_default_archive_path_is_in_package():
     assert path.parent.name == 'data' and path.parent.parent.name == 'sela_ros'
 
 
-def test_shipped_archive_is_valid():
-    path = default_archive_path()
+@pytest.mark.parametrize('name', ['8d', '2d'])
+def test_shipped_archive_is_valid(name):
+    from sela_ros.core.archive import shipped_archive_path
+
+    path = shipped_archive_path(name)
     assert path.exists(), f'the shipped archive {path} is missing'
     archive = load_archive(path)
     assert path.stat().st_size <= 20 * 1024 * 1024
@@ -211,8 +214,9 @@ def test_shipped_archive_is_valid():
         from sim_bridge.settings import simulator_settings
     except ImportError:  # the archive's own checks above still ran
         return
-    load_archive(path, expected_settings=simulator_settings(archive.metadata['dt'],
-                                                            archive.metadata['gait_duration']))
+    stamp = archive.simulator_settings
+    load_archive(path, expected_settings=simulator_settings(
+        stamp['dt'], stamp['gait_duration'], stamp['solver_iterations']))
 
 
 def test_kernel_length_is_the_maps_own_and_sela_takes_it_unless_told_otherwise():
@@ -260,3 +264,20 @@ def test_an_8d_map_gives_the_fall_model_its_support_and_its_own_fall_kernel():
     assert sela.config.fall_kernel_sigma == 0.12
     assert sela.fall_risk.support_model is not None
     assert make_sela(flat, {}).fall_risk.support_model is None
+
+
+def test_shipped_archives_by_name():
+    from sela_ros.core.archive import (SHIPPED_ARCHIVES, resolve_archive_path,
+                                       shipped_archive_path)
+
+    assert resolve_archive_path('') == str(default_archive_path())
+    assert resolve_archive_path('8d') == str(default_archive_path())
+    two = load_archive(resolve_archive_path('2d'))
+    eight = load_archive(resolve_archive_path(' 8d '))
+    assert two.descriptors.shape[1] == 2 and eight.descriptors.shape[1] == 8
+    assert len(eight) >= 10_000 and eight.metadata['archive_kind'] == 'cvt'
+    assert eight.stability is not None and two.stability is None
+    assert resolve_archive_path('/some/map.npz') == '/some/map.npz'
+    assert set(SHIPPED_ARCHIVES) == {'8d', '2d'}
+    with pytest.raises(ArchiveError, match='shipped'):
+        shipped_archive_path('3d')

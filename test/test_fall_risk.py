@@ -28,7 +28,7 @@ def test_one_fall_raises_the_risk_of_similar_gaits_only():
     assert r[fell] > 0.95
     assert np.all(r[(near > 0) & (near < 0.06)] > 0.5)
     # Far from it, the robot's fall rate so far (1 fall in 1 step, 3 safe steps assumed):
-    # below the default threshold, so those gaits are still tried.
+    # below a threshold of 0.3, so those gaits are still tried there.
     assert risk.base_rate == pytest.approx(0.25)
     np.testing.assert_allclose(r[near > 0.4], 0.25, atol=0.01)
     # A gait that did not fall lowers the risk around it again.
@@ -50,7 +50,7 @@ def test_a_robot_that_keeps_falling_keeps_to_the_gaits_seen_upright():
     near_safe = np.linalg.norm(c - c[safe], axis=1) < 0.05
     untried = np.linalg.norm(c - [0.6, 0.5], axis=1) < 0.05
     assert np.all(r[near_safe] < 0.3) and r[safe] < 0.01
-    assert np.all(r[untried] > 0.3)  # not tried any more at the default threshold
+    assert np.all(r[untried] > 0.3)  # not tried any more at a threshold of 0.3
     chosen = np.argmax(safe_choice(c[:, 0], r, 0.3))  # the score pulls toward x = 1
     assert np.linalg.norm(c[chosen] - c[safe]) < 0.2  # within the kernel's reach of it
 
@@ -141,7 +141,7 @@ def test_support_orders_the_risk_before_any_fall_and_falls_rule_out_the_least_su
     theta, beta = risk.support_model
     r = risk.risk()
     far = np.min(np.linalg.norm(c[:, None] - c[np.r_[fell, upright]][None], axis=2), axis=1) > 0.2
-    # Far from every gait tried: the poorly supported ones are now out at the default 0.3,
+    # Far from every gait tried: the poorly supported ones are now out at 0.3,
     # the well supported ones still in.
     assert np.all(r[far & (support < 2.0)] > 0.3)
     assert np.all(r[far & (support > 4.0)] < 0.3)

@@ -234,21 +234,21 @@ def test_goal_inside_an_obstacle_is_refused_and_the_next_goal_goes_around_it(gra
     assert all(nodes.alive().values()), nodes.logs()
 
 
-FALLING_GAIT = 21  # of the shipped archive: tips the robot over without its front left leg
+FALLING_GAIT = 21  # of the shipped 2-D archive: tips the robot over without its front left leg
 
 
 def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_failed(tmp_path):
-    from sela_ros.core.archive import Archive, default_archive_path, load_archive
+    from sela_ros.core.archive import Archive, load_archive, shipped_archive_path
 
     # An archive whose most attractive gait (straight to the first waypoint, on paper) is
     # one that makes the damaged robot fall.
-    shipped = load_archive(default_archive_path())
+    shipped = load_archive(shipped_archive_path('2d'))
     keep = [FALLING_GAIT] + [i for i in range(300) if i != FALLING_GAIT]
     rewards = shipped.generic_reward[keep].copy()
     rewards[0] = (0.6, 0.0, 0.0)
     path = Archive(shipped.params[keep], shipped.descriptors[keep], rewards,
                    shipped.fitness[keep], shipped.metadata).save(tmp_path / 'falling.npz')
-    nodes = NodeProcesses({'sim_bridge': {'damage': 'remove:front_left'},
+    nodes = NodeProcesses({'sim_bridge': {'damage': 'remove:front_left', 'archive': str(path)},
                            'sela_adapter': {'archive': str(path), 'max_steps': 4}})
     client = Client()
     try:

@@ -129,11 +129,15 @@ def test_config_defaults_are_the_code_defaults():
     config = _config()
     adapter = config['sela_adapter']['ros__parameters']
     for key, value in SELAConfig().to_dict().items():
-        if key == 'gp.kernel.sigma':  # 0: the archive's own, the core's for the shipped map
+        if key in ('gp.kernel.sigma', 'fall.kernel.sigma'):  # 0: the archive's own
             from sela_ros.core.archive import default_archive_path, load_archive
+            from sela_ros.core.learning import make_sela
 
             assert adapter[key] == 0.0
-            assert load_archive(default_archive_path()).kernel_sigma == value
+            shipped = load_archive(default_archive_path())
+            used = make_sela(shipped, {key: 0.0}).config
+            assert used.gp_kernel_sigma == shipped.kernel_sigma
+            assert used.fall_kernel_sigma == shipped.fall_kernel_sigma
         elif key in adapter:
             assert adapter[key] == value, key
     detector = config['damage_detector']['ros__parameters']

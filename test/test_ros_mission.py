@@ -76,7 +76,10 @@ def _in_process_mission(damage, seed, goal, on_step=None):
     plan = cfg['planner']['ros__parameters']
     adapter = cfg['sela_adapter']['ros__parameters']
     detector = cfg['damage_detector']['ros__parameters']
-    env = ObservedHexapod(Hexapod(dt=bridge['sim.dt'], gait_duration=bridge['sim.gait_duration'],
+    archive = load_archive(default_archive_path())  # sim_bridge's archive "": the same
+    physics = archive.simulator_settings
+    env = ObservedHexapod(Hexapod(dt=physics['dt'], gait_duration=physics['gait_duration'],
+                                  solver_iterations=physics['solver_iterations'],
                                   damage=damage), bridge['observation.noise_std'], seed=seed,
                           right_on_fall=bridge['right_on_fall'])
     grid = grid_from_description(plan['map.resolution'], plan['map.origin'], plan['map.width'],
@@ -86,7 +89,7 @@ def _in_process_mission(damage, seed, goal, on_step=None):
     det = DetectorConfig(**{k.split('.', 1)[1]: v for k, v in detector.items()
                             if k.startswith('detection.')})
     planner = GridPlanner(grid, inflation=plan['planner.inflation'])
-    return run_mission(env, load_archive(default_archive_path()), goal, planner,
+    return run_mission(env, archive, goal, planner,
                        lookahead=plan['planner.lookahead'], sela_config=sela_config,
                        detector_config=det, max_steps=adapter['max_steps'], on_step=on_step,
                        reset_on_fall=adapter['reset_on_fall'])

@@ -13,7 +13,8 @@ NAMES = ['sim.dt', 'sim.gait_duration', 'sim.solver_iterations']
 
 
 def _settings(archive_path=None):
-    overrides = {'sim_bridge': {'archive': str(archive_path)}} if archive_path else {}
+    overrides = {'sim_bridge': {'archive': str(archive_path)}} if archive_path is not None \
+        else {}
     nodes = NodeProcesses(overrides, names=('sim_bridge',))
     client = Client()
     try:
@@ -44,3 +45,14 @@ def test_an_archive_without_solver_iterations_keeps_the_old_default(tmp_path):
     old = tmp_path / 'old.npz'
     np.savez(old, metadata=np.array(json.dumps({'dt': 1 / 240, 'gait_duration': 3.0})))
     assert _settings(old)[:3] == (1 / 240, 3.0, 50)
+
+
+def test_without_an_archive_it_takes_the_shipped_one_and_none_keeps_its_own():
+    from sela_ros.core.archive import default_archive_path, load_archive
+
+    stamp = load_archive(default_archive_path()).simulator_settings
+    dt, duration, iterations, log = _settings()
+    assert (dt, duration, iterations) == (stamp['dt'], stamp['gait_duration'],
+                                          stamp['solver_iterations'])
+    assert 'physics of archive' in log and 'sela_ros/data/hexapod_archive.npz' in log
+    assert _settings('none')[:3] == (1 / 240, 3.0, 50)

@@ -50,9 +50,10 @@ FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never ch
 
 
 def _archive(text):
-    from sela_ros.core.archive import ArchiveError, load_archive
+    from sela_ros.core.archive import ArchiveError, load_archive, resolve_archive_path
     from sim_bridge.settings import simulator_settings
 
+    text = resolve_archive_path(text)
     try:
         archive = load_archive(text)
     except ArchiveError as err:
@@ -86,7 +87,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from sela_ros.core.archive import default_archive_path
 
     parser.add_argument('--archive', type=_archive, default=str(default_archive_path()),
-                        help='behaviour-performance map (.npz; default: the shipped '
+                        help='behaviour-performance map (.npz, or 8d / 2d for the shipped '
+                             'ones; default: the shipped 8-D map, '
                              'sela_ros/data/hexapod_archive.npz)')
     parser.add_argument('--damage', type=arguments.damage, default='remove:middle_right',
                         help="damage spec, e.g. remove:middle_right (default, the paper's), "

@@ -6,8 +6,8 @@ from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.params import Spec
 
 PARAMETERS = (
-    Spec('archive', '', "the MAP-Elites archive (.npz); '' = the one shipped with the package; "
-         'can change between steps'),
+    Spec('archive', '', "the MAP-Elites archive (.npz); '' = the one shipped with the package "
+         "(the 8-D map), '8d' / '2d' = the shipped ones by name; can change between steps"),
     Spec('gp.kernel.sigma', 0.0, "kernel length on normalised descriptors; 0 = the archive's "
          '(0.1, the paper\'s, for a 2-D map; 0.3 for the 8-D map)', low=0.0, high=100.0,
          read_only=True),
@@ -16,7 +16,7 @@ PARAMETERS = (
          read_only=True),
     Spec('goal.eps', 0.1, 'the goal is reached within this distance', low=1e-4, high=100.0,
          unit=' m', read_only=True),
-    Spec('fall.risk.threshold', 0.3, 'risk of falling accepted: gaits predicted riskier are '
+    Spec('fall.risk.threshold', 0.1, 'risk of falling accepted: gaits predicted riskier are '
          'not tried (1: no avoidance)', low=0.0, high=1.0, read_only=True),
     Spec('fall.kernel.sigma', 0.0, "kernel length of the fall GP; 0 = the archive's (0.1 for a "
          '2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, read_only=True),

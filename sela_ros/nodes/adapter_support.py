@@ -6,7 +6,7 @@ import os
 
 from sela_ros.core import persistence
 from sela_ros.core import stepper_io as io
-from sela_ros.core.archive import ArchiveError, default_archive_path, load_archive
+from sela_ros.core.archive import ArchiveError, load_archive, resolve_archive_path
 from sela_ros.core.learning import make_sela
 from sela_ros.core.stepper import MissionStepper
 from sela_ros.nodes import adapter_params as params
@@ -18,9 +18,10 @@ def _new_stepper(node, archive):
 
 
 def use_archive(node, path):
-    """Load the archive at ``path`` ('': the shipped one) and a stepper over it; a mission in
-    progress goes on with the new archive, from where the robot is."""
-    path = path or str(default_archive_path())
+    """Load the archive at ``path`` ('': the shipped one; ``8d``, ``2d``: the shipped ones by
+    name) and a stepper over it; a mission in progress goes on with the new archive, from
+    where the robot is."""
+    path = resolve_archive_path(path)
     archive, old = load_archive(path), node.stepper
     node.archive, node.archive_path = archive, path
     node.stepper = _new_stepper(node, archive)
@@ -43,7 +44,7 @@ def archive_change(node, value):
     was learned meaningless (its indices are the old archive's gaits): refused while
     anything is learned, until ``~/clear``.
     """
-    path = value or str(default_archive_path())
+    path = resolve_archive_path(value)
     if node.archive is not None and same_file(path, node.archive_path):
         node.get_logger().info(f'archive {path} is the one in use: kept, with what was '
                                'learned on it')
