@@ -272,7 +272,8 @@ def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_faile
         nodes.stop()
 
 
-@pytest.mark.parametrize('graph', [{'sim_bridge': {'sim.dt': 0.005}}], indirect=True)
+@pytest.mark.parametrize('graph', [{'sim_bridge': {'sim.dt': 0.005, 'archive': 'none'}}],
+                         indirect=True)
 def test_archive_built_for_another_simulator_is_refused_with_the_reason(graph):
     nodes, client = graph
     diag = Diagnostics(client)
