@@ -181,3 +181,20 @@ def test_sela_uses_the_fall_kernel_of_its_config():
     near = np.linalg.norm(c - c[0], axis=1)
     ring = (near > 0.1) & (near < 0.2)
     assert narrow.fall_risk.risk()[ring].max() < wide.fall_risk.risk()[ring].min()
+
+
+def test_a_fall_cost_trades_progress_for_safety_below_the_threshold():
+    c = _grid()
+    prior = np.tile([0.3, 0.0, 0.0], (len(c), 1))
+    prior[:, 0] += 0.1 * c[:, 0]  # large first descriptor: furthest
+    support = 1.0 + 3.0 * (1.0 - c[:, 0])  # ... and least supported
+    def sela(cost):
+        return SELA(c, prior, SE2Motion(), goal=(5.0, 0.0), stability=support,
+                    config=SELAConfig(planner_lookahead=0.5, fall_risk_threshold=0.5,
+                                      fall_risk_cost=cost))
+    free, careful = sela(0.0), sela(1.0)
+    fast = free.ask(np.zeros(3))
+    safe = careful.ask(np.zeros(3))
+    assert support[safe.index] > support[fast.index]  # the cost moved the choice
+    assert safe.fall_risk < fast.fall_risk <= 0.5
+    assert safe.reward < fast.reward  # progress given up for it

@@ -83,12 +83,15 @@ class SELAConfig:
     # Kernel length of the fall GP (normalised descriptors); 0: gp.kernel.sigma. Falls are
     # more local than displacements on the 8-D map (docs/archive.md), so maps set their own.
     fall_kernel_sigma: float = 0.0
+    # What a fall costs, in metres of the specialised reward: UCB takes cost x risk off each
+    # gait's score (0: only the threshold keeps falls away).
+    fall_risk_cost: float = 0.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             check_number(_dotted(f.name), getattr(self, f.name), low=0.0,
                          low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise',
-                                                 'fall_kernel_sigma'))
+                                                 'fall_kernel_sigma', 'fall_risk_cost'))
 
     @classmethod
     def keys(cls):
@@ -267,6 +270,8 @@ class SELA:
         risk = self._fall.risk()
         if self._fall.falls or self._prior_fall_rate is not None \
                 or self._stability is not None:
+            if self.config.fall_risk_cost:
+                scores = scores - self.config.fall_risk_cost * risk
             scores = fall_risk.safe_choice(scores, risk, self.config.fall_risk_threshold)
         index = int(np.argmax(scores))
         gr = mu_t[:, index].copy()

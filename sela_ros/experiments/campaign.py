@@ -75,6 +75,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--kernel-sigma', type=arguments.positive_float, default=None,
                         help="gp.kernel.sigma on normalised descriptors (default: each "
                              "archive's: 0.1 for the 2-D map, 0.3 for the 8-D map)")
+    parser.add_argument('--fall-cost', type=arguments.non_negative_float, default=None,
+                        help="fall.risk.cost of SELA (default: its default)")
     parser.add_argument('--fall-kernel-sigma', type=arguments.positive_float, default=None,
                         help="fall.kernel.sigma: kernel length of the fall GP (default: the "
                              "archive's: 0.1 on a 2-D map, 0.12 on the 8-D map)")
@@ -112,7 +114,7 @@ def run(args, progress=None) -> dict:
                         archive=archive, damage=damage, goal=goal, noise_std=args.noise_std,
                         lookahead=args.lookahead,
                         kernel_sigma=args.kernel_sigma,
-                        fall_kernel_sigma=args.fall_kernel_sigma,
+                        fall_kernel_sigma=args.fall_kernel_sigma, fall_cost=args.fall_cost,
                         alpha=SELAConfig().acquisition_ucb_alpha,
                         fall_risk=args.fall_risk or SELAConfig().fall_risk_threshold,
                         methods=args.methods, max_steps=args.max_steps,

@@ -112,6 +112,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="gp.kernel.sigma on normalised descriptors (default: the "
                              "archive's: 0.1, the paper's, for the 2-D map; 0.3 for the 8-D "
                              "map)")
+    parser.add_argument('--fall-cost', type=arguments.non_negative_float, default=None,
+                        help="fall.risk.cost: metres of progress a fall is worth in SELA's "
+                             'choice (default: SELA\'s default)')
     parser.add_argument('--fall-kernel-sigma', type=arguments.positive_float, default=None,
                         help="fall.kernel.sigma: kernel length of the fall GP (default: the "
                              "archive's: 0.1 on a 2-D map, 0.12 on the 8-D map)")
@@ -147,12 +150,15 @@ def ite_targets(prior_gr) -> np.ndarray:
 
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
-                 fall_risk=None, planner=None, via=(), fall_kernel_sigma=None) -> Problem:
+                 fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
+                 fall_cost=None) -> Problem:
     defaults = SELAConfig()
     config = SELAConfig(planner_lookahead=lookahead,
                         fall_risk_threshold=fall_risk or defaults.fall_risk_threshold,
                         gp_kernel_sigma=kernel_sigma or archive.kernel_sigma,
                         fall_kernel_sigma=fall_kernel_sigma or archive.fall_kernel_sigma,
+                        fall_risk_cost=defaults.fall_risk_cost if fall_cost is None
+                        else fall_cost,
                         acquisition_ucb_alpha=defaults.acquisition_ucb_alpha if alpha is None
                         else alpha)
     return Problem(
@@ -202,7 +208,7 @@ def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
      ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk, map_path, inflation,
-     via, fall_kernel_sigma) = job
+     via, fall_kernel_sigma, fall_cost) = job
     from sela_ros.experiments.courses import CourseEnvironment
     from sim_bridge.experiment_env import HexapodEnvironment
 
@@ -219,7 +225,7 @@ def run_method(job):
         problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
                                ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
                                alpha=alpha, fall_risk=fall_risk, planner=planner, via=via,
-                               fall_kernel_sigma=fall_kernel_sigma)
+                               fall_kernel_sigma=fall_kernel_sigma, fall_cost=fall_cost)
         result = METHODS[name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),
@@ -266,7 +272,8 @@ def run(args, progress=None) -> dict:
                          args.noise_std, args.lookahead, args.max_steps,
                          args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
                          args.fall_risk, map_path, inflation, via,
-                         getattr(args, 'fall_kernel_sigma', None)))
+                         getattr(args, 'fall_kernel_sigma', None),
+                         getattr(args, 'fall_cost', None)))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -326,6 +333,8 @@ def run(args, progress=None) -> dict:
                            'fall.risk.threshold': args.fall_risk,
                            'fall.kernel.sigma': getattr(args, 'fall_kernel_sigma', None)
                            or archive.fall_kernel_sigma,
+                           'fall.risk.cost': SELAConfig().fall_risk_cost
+                           if getattr(args, 'fall_cost', None) is None else args.fall_cost,
                            'archive': os.path.abspath(args.archive),
                            'archive_checksum': archive_checksum(archive.params),
                            'num_behaviours': len(archive),

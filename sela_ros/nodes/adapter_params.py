@@ -18,6 +18,9 @@ PARAMETERS = (
          unit=' m', read_only=True),
     Spec('fall.risk.threshold', 0.1, 'risk of falling accepted: gaits predicted riskier are '
          'not tried (1: no avoidance)', low=0.0, high=1.0, read_only=True),
+    Spec('fall.risk.cost', 0.0, 'what a fall costs, in metres of predicted progress: UCB takes '
+         'cost x risk off every gait (0: only the threshold)', low=0.0, high=100.0,
+         unit=' m', read_only=True),
     Spec('fall.kernel.sigma', 0.0, "kernel length of the fall GP; 0 = the archive's (0.1 for a "
          '2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, read_only=True),
     Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
@@ -45,7 +48,7 @@ PARAMETERS = (
          read_only=True),
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
-             'fall.risk.threshold', 'fall.kernel.sigma')
+             'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma')
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
