@@ -69,13 +69,14 @@ def test_safe_choice_rules_out_risky_gaits_and_keeps_the_least_risky_when_all_ar
     assert np.isneginf(masked[0]) and masked[1] == 2.0 and np.isneginf(masked[2])
 
 
-def _sela(threshold):
+def _sela(threshold, cost=0.0):
     c = _grid()
     # Every gait moves 0.3 m forward on the intact robot; the goal is straight ahead.
     prior = np.tile([0.3, 0.0, 0.0], (len(c), 1))
     prior[:, 0] += 0.1 * c[:, 0]  # the gaits with a large first descriptor go furthest
     return SELA(c, prior, SE2Motion(), goal=(5.0, 0.0),
-                config=SELAConfig(planner_lookahead=0.5, fall_risk_threshold=threshold))
+                config=SELAConfig(planner_lookahead=0.5, fall_risk_threshold=threshold,
+                                  fall_risk_cost=cost))
 
 
 def test_sela_stops_choosing_gaits_like_one_that_fell():
@@ -87,11 +88,15 @@ def test_sela_stops_choosing_gaits_like_one_that_fell():
     c = _grid()
     assert np.linalg.norm(c[second.index] - c[first.index]) > 0.1
     assert second.fall_risk <= 0.3
-    # With the risk accepted at 1 the fall changes nothing (the GR GP learnt nothing).
+    # With the risk accepted at 1 and no cost the fall changes nothing (the GR GP learnt
+    # nothing); with a cost it does.
     blind = _sela(1.0)
     index = blind.ask(np.zeros(3)).index
     blind.tell_fall(index, True)
     assert blind.ask(np.zeros(3)).index == index
+    costly = _sela(1.0, cost=1.0)
+    costly.tell_fall(index, True)
+    assert costly.ask(np.zeros(3)).index != index
 
 
 def test_falls_survive_a_restart_of_adaptation_and_a_state_round_trip():

@@ -47,9 +47,12 @@ import numpy as np
 
 from sela_ros.core.gp import CandidateSetGP
 
-#: Risk accepted by default: gaits predicted to fall more often than this are not tried
-#: (measured on the 8-D map against 0.05, 0.07, 0.15 and 0.3: docs/archive.md).
-DEFAULT_THRESHOLD = 0.1
+#: Risk accepted by default: gaits predicted to fall more often than this are never tried.
+#: Below it, SELA's ``fall.risk.cost`` weighs the risk against the progress (docs/archive.md).
+DEFAULT_THRESHOLD = 0.3
+#: What a fall costs by default in SELA's choice, in metres of predicted progress (measured on
+#: the 8-D map against 0, 0.5 and 2: docs/archive.md).
+DEFAULT_COST = 1.0
 #: Steps without a fall assumed before any is seen, in the fall rate of untried gaits without
 #: a stability feature: one fall in the first step gives them 0.25, two in a row 0.4.
 SAFE_PSEUDO_STEPS = 3

@@ -85,7 +85,7 @@ class SELAConfig:
     fall_kernel_sigma: float = 0.0
     # What a fall costs, in metres of the specialised reward: UCB takes cost x risk off each
     # gait's score (0: only the threshold keeps falls away).
-    fall_risk_cost: float = 0.0
+    fall_risk_cost: float = fall_risk.DEFAULT_COST
 
     def __post_init__(self):
         for f in dataclasses.fields(self):

@@ -16,9 +16,9 @@ PARAMETERS = (
          read_only=True),
     Spec('goal.eps', 0.1, 'the goal is reached within this distance', low=1e-4, high=100.0,
          unit=' m', read_only=True),
-    Spec('fall.risk.threshold', 0.1, 'risk of falling accepted: gaits predicted riskier are '
+    Spec('fall.risk.threshold', 0.3, 'risk of falling accepted: gaits predicted riskier are '
          'not tried (1: no avoidance)', low=0.0, high=1.0, read_only=True),
-    Spec('fall.risk.cost', 0.0, 'what a fall costs, in metres of predicted progress: UCB takes '
+    Spec('fall.risk.cost', 1.0, 'what a fall costs, in metres of predicted progress: UCB takes '
          'cost x risk off every gait (0: only the threshold)', low=0.0, high=100.0,
          unit=' m', read_only=True),
     Spec('fall.kernel.sigma', 0.0, "kernel length of the fall GP; 0 = the archive's (0.1 for a "
