@@ -152,22 +152,22 @@ class Archive:
         """The GP kernel length this map is meant to be used with: its metadata's
         ``gp_kernel_sigma``, else :data:`KERNEL_SIGMA_2D` for a 2-D map and
         :data:`KERNEL_SIGMA_HIGHER` for more descriptor dimensions."""
-        value = self.metadata.get('gp_kernel_sigma')
-        if isinstance(value, (int, float)) and not isinstance(value, bool) \
-                and math.isfinite(value) and value > 0:
-            return float(value)
-        return KERNEL_SIGMA_2D if self.descriptors.shape[1] <= 2 else KERNEL_SIGMA_HIGHER
+        return self._length('gp_kernel_sigma', KERNEL_SIGMA_HIGHER)
 
     @property
     def fall_kernel_sigma(self) -> float:
         """The fall GP's kernel length for this map: metadata ``fall_kernel_sigma``, else
         :data:`KERNEL_SIGMA_2D` for a 2-D map and :data:`FALL_KERNEL_SIGMA_HIGHER` for more
         descriptor dimensions."""
-        value = self.metadata.get('fall_kernel_sigma')
+        return self._length('fall_kernel_sigma', FALL_KERNEL_SIGMA_HIGHER)
+
+    def _length(self, key, higher):
+        """A kernel length: metadata ``key`` if usable, else the 2-D or ``higher`` default."""
+        value = self.metadata.get(key)
         if isinstance(value, (int, float)) and not isinstance(value, bool) \
                 and math.isfinite(value) and value > 0:
             return float(value)
-        return KERNEL_SIGMA_2D if self.descriptors.shape[1] <= 2 else FALL_KERNEL_SIGMA_HIGHER
+        return KERNEL_SIGMA_2D if self.descriptors.shape[1] <= 2 else higher
 
     @property
     def stability(self) -> np.ndarray | None:
