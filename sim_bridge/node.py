@@ -84,8 +84,10 @@ PARAMETERS = (
 class SimBridge(Node):
     def __init__(self):
         super().__init__(ifc.SIM_BRIDGE)
-        self._take_archive_physics()
+        physics = self._take_archive_physics()
         values = declare(self, PARAMETERS, on_change=self.parameters_callback)
+        if physics:  # said once the parameters are known good (a bad one: one line only)
+            self.get_logger().info(physics)
         damage = values['damage']
         robot = Hexapod(dt=values['sim.dt'], gait_duration=values['sim.gait_duration'],
                         solver_iterations=values['sim.solver_iterations'],
@@ -130,7 +132,8 @@ class SimBridge(Node):
                                f'noise std {self.env.noise_std} m')
 
     def _take_archive_physics(self):
-        """Start-up values of sim.* from the stamp of the archive given at start-up, if any.
+        """Start-up values of sim.* from the stamp of the archive given at start-up ('' = the
+        shipped one); returns what to log once the parameters are declared, or None.
 
         They are read-only parameters, so they are set before they are declared, as start-up
         overrides (the way ``params.declare`` coerces them), and report what really runs.
@@ -141,21 +144,21 @@ class SimBridge(Node):
 
         overrides = getattr(self, '_parameter_overrides', None)
         if not isinstance(overrides, dict):
-            return
+            return None
         archive = overrides.get('archive')
         value = archive.value if archive is not None else ''
         if not isinstance(value, str) or value.strip().lower() == 'none':
-            return  # a wrongly typed archive is reported when the parameter is declared
+            return None  # a wrongly typed archive is reported when it is declared
         path = resolve_archive_path(value)
         try:
             settings = read_archive_settings(path)
         except ValueError as exc:
             self.get_logger().error(f'parameter archive: {exc}; using the sim.* parameters')
-            return
+            return None
         for name, key in (('sim.dt', 'dt'), ('sim.gait_duration', 'gait_duration'),
                           ('sim.solver_iterations', 'solver_iterations')):
             overrides[name] = Parameter(name, value=settings[key])
-        self.get_logger().info(f'physics of archive {path}: {settings}')
+        return f'physics of archive {path}: {settings}'
 
     # --- callbacks (short: they only validate and enqueue) -------------------------------
 

@@ -44,6 +44,21 @@ def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
     except rclpy_implementation.RCLError as exc:
         print(f'[ERROR] [{node_class.__name__}]: not started: {exc}', file=sys.stderr)
         sys.exit(EXIT_BAD_CONFIGURATION)
+    try:
+        status = _spin(node_class, executor_factory)
+    except KeyboardInterrupt:
+        # The one Ctrl-C our handler turns into KeyboardInterrupt can land after rclpy's own
+        # handler already ended the spin, inside the clean-up (seen under load): the clean-up
+        # was cut short, so finish it here; later Ctrl-Cs are ignored already.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        rclpy.try_shutdown()
+        status = 0
+    if status:
+        sys.exit(status)
+
+
+def _spin(node_class, executor_factory):
+    """Create the node and spin it; returns the exit status."""
     node = None
     status = 0
     try:
@@ -63,5 +78,4 @@ def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    if status:
-        sys.exit(status)
+    return status
