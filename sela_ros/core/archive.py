@@ -389,12 +389,8 @@ def default_archive_path() -> Path:
 def resolve_archive_path(value: str) -> str:
     """An ``archive`` parameter's value as a path: '' is the default shipped archive, ``8d``
     and ``2d`` the shipped ones by name, anything else a path as given."""
-    value = (value or '').strip()
-    if not value:
-        return str(default_archive_path())
-    if value in SHIPPED_ARCHIVES:
-        return str(shipped_archive_path(value))
-    return value
+    value = (value or '').strip() or '8d'
+    return str(shipped_archive_path(value)) if value in SHIPPED_ARCHIVES else value
 
 
 def shipped_archive_path(name: str) -> Path:
