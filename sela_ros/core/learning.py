@@ -10,20 +10,25 @@ from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
 from sela_ros.core.stepper_io import StepRecord
 
 
-def make_sela(archive, config=None):
-    """A SE(2) SELA over the archive's behaviours (prior mean: the intact robot's GR).
-
-    ``gp.kernel.sigma`` and ``fall.kernel.sigma`` left out of ``config`` (or 0) are the
-    archive's own (:attr:`~sela_ros.core.archive.Archive.kernel_sigma`,
-    :attr:`~sela_ros.core.archive.Archive.fall_kernel_sigma`); the fall model takes the
-    archive's :attr:`~sela_ros.core.archive.Archive.stability` when it has one."""
+def archive_config(archive, config=None) -> SELAConfig:
+    """SELA parameters for ``archive``: ``config`` (dotted names), where ``gp.kernel.sigma``
+    and ``fall.kernel.sigma`` left out (or 0) are the archive's own
+    (:attr:`~sela_ros.core.archive.Archive.kernel_sigma`,
+    :attr:`~sela_ros.core.archive.Archive.fall_kernel_sigma`)."""
     config = dict(config or {})
     if not config.get('gp.kernel.sigma'):
         config['gp.kernel.sigma'] = archive.kernel_sigma
     if not config.get('fall.kernel.sigma'):
         config['fall.kernel.sigma'] = getattr(archive, 'fall_kernel_sigma', 0.0)
+    return SELAConfig.from_dict(config)
+
+
+def make_sela(archive, config=None):
+    """A SE(2) SELA over the archive's behaviours (prior mean: the intact robot's GR), with
+    :func:`archive_config`; the fall model takes the archive's
+    :attr:`~sela_ros.core.archive.Archive.stability` when it has one."""
     return SELA(archive.normalised_descriptors(), archive.generic_reward, SE2Motion(),
-                config=SELAConfig.from_dict(config),
+                config=archive_config(archive, config),
                 stability=getattr(archive, 'stability', None))
 
 

@@ -152,15 +152,12 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
                  fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
                  fall_cost=None) -> Problem:
-    defaults = SELAConfig()
-    config = SELAConfig(planner_lookahead=lookahead,
-                        fall_risk_threshold=fall_risk or defaults.fall_risk_threshold,
-                        gp_kernel_sigma=kernel_sigma or archive.kernel_sigma,
-                        fall_kernel_sigma=fall_kernel_sigma or archive.fall_kernel_sigma,
-                        fall_risk_cost=defaults.fall_risk_cost if fall_cost is None
-                        else fall_cost,
-                        acquisition_ucb_alpha=defaults.acquisition_ucb_alpha if alpha is None
-                        else alpha)
+    from sela_ros.core.learning import archive_config
+
+    given = {'planner.lookahead': lookahead, 'fall.risk.threshold': fall_risk or None,
+             'gp.kernel.sigma': kernel_sigma, 'fall.kernel.sigma': fall_kernel_sigma,
+             'fall.risk.cost': fall_cost, 'acquisition.ucb.alpha': alpha}
+    config = archive_config(archive, {k: v for k, v in given.items() if v is not None})
     return Problem(
         candidates=archive.normalised_descriptors(),
         prior_gr=archive.generic_reward,
@@ -264,6 +261,12 @@ def run(args, progress=None) -> dict:
     goal = args.goal or (list(course.goals[-1]) if course else [2.0, 2.0])
     # On a course without --goal: the course's mission, its goals in order.
     via = [list(g) for g in course.goals[:-1]] if course and not args.goal else []
+    # The parameters every run uses (the archive's own where left out), for the record.
+    used = make_problem(archive, goal, args.lookahead, args.max_steps,
+                        kernel_sigma=args.kernel_sigma, alpha=args.alpha,
+                        fall_risk=args.fall_risk,
+                        fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
+                        fall_cost=getattr(args, 'fall_cost', None)).config
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     jobs = []
     for seed in seeds:
@@ -328,13 +331,11 @@ def run(args, progress=None) -> dict:
                            'inflation': inflation if map_path else None,
                            'goal_eps': SELAConfig().goal_eps,
                            'ite_max_iterations': args.ite_iterations,
-                           'gp.kernel.sigma': args.kernel_sigma or archive.kernel_sigma,
-                           'acquisition.ucb.alpha': args.alpha,
-                           'fall.risk.threshold': args.fall_risk,
-                           'fall.kernel.sigma': getattr(args, 'fall_kernel_sigma', None)
-                           or archive.fall_kernel_sigma,
-                           'fall.risk.cost': SELAConfig().fall_risk_cost
-                           if getattr(args, 'fall_cost', None) is None else args.fall_cost,
+                           'gp.kernel.sigma': used.gp_kernel_sigma,
+                           'acquisition.ucb.alpha': used.acquisition_ucb_alpha,
+                           'fall.risk.threshold': used.fall_risk_threshold,
+                           'fall.kernel.sigma': used.fall_kernel_sigma,
+                           'fall.risk.cost': used.fall_risk_cost,
                            'archive': os.path.abspath(args.archive),
                            'archive_checksum': archive_checksum(archive.params),
                            'num_behaviours': len(archive),
