@@ -54,3 +54,33 @@ def test_goals_with_negative_coordinates_are_taken_as_written_in_the_docs():
     args = build_parser().parse_args(['hexapod', '--replicates', '1', '--out', 'x',
                                       '--goal', '-0.5,-1'])
     assert tuple(args.goal) == (-0.5, -1)
+
+
+def test_a_method_added_later_joins_the_cells_with_the_seeds_of_a_run_of_all(tmp_path):
+    from test_hexapod_experiment import tiny_archive
+
+    archive = tiny_archive(tmp_path / 'tiny.npz')
+
+    def campaign(out, methods):
+        args = ['campaign', '--replicates', '2', '--seed', '5', '--out', str(out), '--quiet',
+                '--archive', str(archive), '--methods', methods, '--goals', '0.3,0',
+                '--damages', 'remove:middle_right', '--max-steps', '4',
+                '--noise-std', '0.3', '--oracle-cache', str(tmp_path / 'cache')]
+        proc = subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', *args],
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        cell = cell_dir(out, archive, 'remove:middle_right', [0.3, 0.0]) / 'results.json'
+        return cell, json.loads(cell.read_text())
+
+    cell, first = campaign(tmp_path / 'a', 'oracle')
+    assert list(first['methods']) == ['oracle']
+    # Mark the oracle's runs: adding SELA must keep them, not run them again.
+    first['methods']['oracle']['steps'] = [77, 77]
+    cell.write_text(json.dumps(first))
+    _, added = campaign(tmp_path / 'a', 'oracle,sela')
+    assert added['methods']['oracle']['steps'] == [77, 77]
+    assert set(added['summary']) == {'oracle', 'sela'}
+    _, together = campaign(tmp_path / 'b', 'oracle,sela')
+    assert added['methods']['sela'] == together['methods']['sela']
+    assert added['parameters']['oracle_gaits_that_fall'] == \
+        together['parameters']['oracle_gaits_that_fall']

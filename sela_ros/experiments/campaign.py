@@ -18,6 +18,7 @@ sessions) resumes where it stopped. At the end ``OUT/campaign.md`` holds a table
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 from pathlib import Path
@@ -99,6 +100,27 @@ def cell_dir(out, archive, damage, goal) -> Path:
     return Path(out) / _slug(Path(archive).stem) / _slug(damage) / _slug(goal_text)
 
 
+def _merge_cell(done: dict, new: dict) -> dict:
+    """A cell's results with the methods of ``new`` added to those ``done`` had."""
+    for key in ('replicates', 'seed'):
+        if done.get(key) != new.get(key):
+            raise ValueError(f'the cell has {key} {done.get(key)}, the methods to add '
+                             f'{new.get(key)}; use another --out')
+    old_params, new_params = done.get('parameters', {}), new.get('parameters', {})
+    if old_params.get('archive_checksum') != new_params.get('archive_checksum'):
+        raise ValueError('the cell was run on another archive of the same name; use '
+                         'another --out')
+    merged = copy.deepcopy(done)
+    merged['methods'].update(new['methods'])
+    merged.setdefault('summary', {}).update(new.get('summary', {}))
+    merged.setdefault('timing', {}).setdefault('methods', {}).update(
+        new.get('timing', {}).get('methods', {}))
+    if 'oracle' in new['methods']:
+        merged['parameters']['oracle_gaits_that_fall'] = new_params['oracle_gaits_that_fall']
+        merged['timing']['oracle_table_seconds'] = new['timing']['oracle_table_seconds']
+    return merged
+
+
 def run(args, progress=None) -> dict:
     from sela_ros.core.sela import SELAConfig
 
@@ -109,7 +131,10 @@ def run(args, progress=None) -> dict:
             for goal in args.goals:
                 where = cell_dir(args.out, archive, damage, goal)
                 path = where / 'results.json'
-                if not path.exists():
+                done = json.loads(path.read_text()) if path.exists() else None
+                have = list(done['methods']) if done else []
+                missing = [m for m in args.methods if m not in have]
+                if missing:
                     cell_args = SimpleNamespace(
                         archive=archive, damage=damage, goal=goal, noise_std=args.noise_std,
                         lookahead=args.lookahead,
@@ -117,11 +142,14 @@ def run(args, progress=None) -> dict:
                         fall_kernel_sigma=args.fall_kernel_sigma, fall_cost=args.fall_cost,
                         alpha=SELAConfig().acquisition_ucb_alpha,
                         fall_risk=args.fall_risk or SELAConfig().fall_risk_threshold,
-                        methods=args.methods, max_steps=args.max_steps,
+                        methods=missing, method_slots=have + missing,
+                        max_steps=args.max_steps,
                         ite_iterations=hexapod.ITE_MAX_ITERATIONS,
                         oracle_cache=args.oracle_cache, replicates=args.replicates,
                         seed=args.seed, workers=args.workers)
                     doc = hexapod.run(cell_args)
+                    if done:  # keep what the cell had; its new methods join it
+                        doc = _merge_cell(done, doc)
                     atomic_write_bytes(path, json.dumps(doc, indent=1).encode())
                 doc = json.loads(path.read_text())
                 cells.append({'archive': Path(archive).stem, 'damage': damage,

@@ -268,9 +268,14 @@ def run(args, progress=None) -> dict:
                         fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
                         fall_cost=getattr(args, 'fall_cost', None)).config
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
+    # Each method's seeds are its slot in the full list of methods: run on their own later
+    # (the campaign adding a method to a cell), they are those of a run of all of them.
+    slots = list(getattr(args, 'method_slots', None) or args.methods)
     jobs = []
     for seed in seeds:
-        for name, child in zip(args.methods, seed.spawn(len(args.methods))):
+        children = seed.spawn(len(slots))
+        for name in args.methods:
+            child = children[slots.index(name)]
             jobs.append((name, child, os.path.abspath(args.archive), args.damage, goal,
                          args.noise_std, args.lookahead, args.max_steps,
                          args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
