@@ -267,8 +267,7 @@ def test_an_8d_map_gives_the_fall_model_its_support_and_its_own_fall_kernel():
 
 
 def test_shipped_archives_by_name():
-    from sela_ros.core.archive import (SHIPPED_ARCHIVES, resolve_archive_path,
-                                       shipped_archive_path)
+    from sela_ros.core.archive import SHIPPED_ARCHIVES, resolve_archive_path, shipped_archive_path
 
     assert resolve_archive_path('') == str(default_archive_path())
     assert resolve_archive_path('8d') == str(default_archive_path())
