@@ -61,14 +61,16 @@ def test_a_method_added_later_joins_the_cells_with_the_seeds_of_a_run_of_all(tmp
 
     archive = tiny_archive(tmp_path / 'tiny.npz')
 
-    def campaign(out, methods):
+    def campaign(out, methods, *extra, status=0):
         args = ['campaign', '--replicates', '2', '--seed', '5', '--out', str(out), '--quiet',
                 '--archive', str(archive), '--methods', methods, '--goals', '0.3,0',
                 '--damages', 'remove:middle_right', '--max-steps', '4',
-                '--noise-std', '0.3', '--oracle-cache', str(tmp_path / 'cache')]
+                '--noise-std', '0.3', '--oracle-cache', str(tmp_path / 'cache'), *extra]
         proc = subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', *args],
                               capture_output=True, text=True, timeout=600)
-        assert proc.returncode == 0, proc.stderr
+        assert proc.returncode == status, proc.stderr
+        if status:
+            return proc.stderr
         cell = cell_dir(out, archive, 'remove:middle_right', [0.3, 0.0]) / 'results.json'
         return cell, json.loads(cell.read_text())
 
@@ -82,5 +84,11 @@ def test_a_method_added_later_joins_the_cells_with_the_seeds_of_a_run_of_all(tmp
     assert set(added['summary']) == {'oracle', 'sela'}
     _, together = campaign(tmp_path / 'b', 'oracle,sela')
     assert added['methods']['sela'] == together['methods']['sela']
+    # Cells run with other parameters are not read back as if they answered this command.
+    for extra, named in ((['--alpha', '0.5'], 'acquisition.ucb.alpha 0.05 (asked 0.5)'),
+                         (['--replicates', '3'], 'replicates 2 (asked 3)'),
+                         (['--max-steps', '9'], 'max_steps 4 (asked 9)')):
+        error = campaign(tmp_path / 'b', 'oracle,sela', *extra, status=2)
+        assert named in error and 'Traceback' not in error
     assert added['parameters']['oracle_gaits_that_fall'] == \
         together['parameters']['oracle_gaits_that_fall']

@@ -27,6 +27,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from sela_ros.core.persistence import atomic_write_bytes
+from sela_ros.core.sela import SELAConfig
 from sela_ros.experiments import arguments, hexapod
 
 LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right', 'rear_right')
@@ -81,6 +82,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--fall-kernel-sigma', type=arguments.positive_float, default=None,
                         help="fall.kernel.sigma: kernel length of the fall GP (default: the "
                              "archive's: 0.1 on a 2-D map, 0.12 on the 8-D map)")
+    parser.add_argument('--alpha', type=arguments.non_negative_float,
+                        default=SELAConfig().acquisition_ucb_alpha,
+                        help="acquisition.ucb.alpha of SELA (default %(default)s, the paper's)")
     parser.add_argument('--max-steps', type=arguments.positive_int, default=100)
     parser.add_argument('--oracle-cache', default=None,
                         help='directory of cached oracle tables')
@@ -100,15 +104,45 @@ def cell_dir(out, archive, damage, goal) -> Path:
     return Path(out) / _slug(Path(archive).stem) / _slug(damage) / _slug(goal_text)
 
 
+class CellMismatch(ValueError):
+    """A cell already in ``--out`` was run with other parameters than those asked."""
+
+
+def _expected_parameters(archive_path, args) -> dict:
+    from sela_ros.core.archive import load_archive
+
+    config = hexapod.sela_config(load_archive(archive_path), args.lookahead,
+                                 kernel_sigma=args.kernel_sigma, alpha=args.alpha,
+                                 fall_risk=args.fall_risk,
+                                 fall_kernel_sigma=args.fall_kernel_sigma,
+                                 fall_cost=args.fall_cost).to_dict()
+    expected = {k: config[k] for k in hexapod.RECORDED_SELA_PARAMETERS}
+    expected.update(noise_std=args.noise_std, max_steps=args.max_steps,
+                    lookahead=args.lookahead)
+    return expected
+
+
+def _check_cell(path, done, args, expected) -> None:
+    """Refuse to read back (or add methods to) a cell run with other parameters."""
+    have = dict(done.get('parameters', {}), replicates=done.get('replicates'),
+                seed=done.get('seed'))
+    wanted = dict(expected, replicates=args.replicates, seed=args.seed)
+    differ = [f'{k} {have[k]!r} (asked {v!r})' for k, v in wanted.items()
+              if have.get(k) is not None and have[k] != v]
+    if differ:
+        raise CellMismatch(f'{path} was run with {", ".join(differ)}; use another --out '
+                           'for other parameters, or remove that cell to run it again')
+
+
 def _merge_cell(done: dict, new: dict) -> dict:
     """A cell's results with the methods of ``new`` added to those ``done`` had."""
     for key in ('replicates', 'seed'):
         if done.get(key) != new.get(key):
-            raise ValueError(f'the cell has {key} {done.get(key)}, the methods to add '
+            raise CellMismatch(f'the cell has {key} {done.get(key)}, the methods to add '
                              f'{new.get(key)}; use another --out')
     old_params, new_params = done.get('parameters', {}), new.get('parameters', {})
     if old_params.get('archive_checksum') != new_params.get('archive_checksum'):
-        raise ValueError('the cell was run on another archive of the same name; use '
+        raise CellMismatch('the cell was run on another archive of the same name; use '
                          'another --out')
     merged = copy.deepcopy(done)
     merged['methods'].update(new['methods'])
@@ -122,16 +156,18 @@ def _merge_cell(done: dict, new: dict) -> dict:
 
 
 def run(args, progress=None) -> dict:
-    from sela_ros.core.sela import SELAConfig
-
     archives = [os.path.abspath(a) for a in (args.archive or [args.default_archive])]
     cells = []
+    expected = {}  # per archive: the parameters its cells must have been run with
     for archive in archives:
         for damage in args.damages:
             for goal in args.goals:
                 where = cell_dir(args.out, archive, damage, goal)
                 path = where / 'results.json'
                 done = json.loads(path.read_text()) if path.exists() else None
+                if done:
+                    _check_cell(path, done, args, expected.setdefault(
+                        archive, _expected_parameters(archive, args)))
                 have = list(done['methods']) if done else []
                 missing = [m for m in args.methods if m not in have]
                 if missing:
@@ -140,7 +176,7 @@ def run(args, progress=None) -> dict:
                         lookahead=args.lookahead,
                         kernel_sigma=args.kernel_sigma,
                         fall_kernel_sigma=args.fall_kernel_sigma, fall_cost=args.fall_cost,
-                        alpha=SELAConfig().acquisition_ucb_alpha,
+                        alpha=args.alpha,
                         fall_risk=args.fall_risk or SELAConfig().fall_risk_threshold,
                         methods=missing, method_slots=have + missing,
                         max_steps=args.max_steps,

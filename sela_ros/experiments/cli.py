@@ -92,7 +92,11 @@ def main(argv=None) -> int:
     total = getattr(module, 'progress_total', lambda a: a.replicates)(args)
     with tqdm(total=total, desc=args.scenario, unit='replicate', file=sys.stderr,
               disable=args.quiet) as bar:
-        doc = module.run(args, progress=lambda: bar.update(1))
+        try:
+            doc = module.run(args, progress=lambda: bar.update(1))
+        except getattr(module, 'CellMismatch', ()) as err:
+            bar.close()
+            parser.error(str(err))
     results_path = os.path.join(args.out, 'results.json')
     atomic_write_bytes(results_path, json.dumps(doc, indent=1).encode())
 

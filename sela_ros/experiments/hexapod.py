@@ -148,16 +148,28 @@ def ite_targets(prior_gr) -> np.ndarray:
                      [0.0, 0.0, prior_gr[:, 2].min()]])
 
 
-def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
-                 ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
-                 fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
-                 fall_cost=None) -> Problem:
+#: SELA parameters a results.json records (resolved: the archive's own where left out).
+RECORDED_SELA_PARAMETERS = ('gp.kernel.sigma', 'acquisition.ucb.alpha', 'fall.risk.threshold',
+                            'fall.kernel.sigma', 'fall.risk.cost')
+
+
+def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=None,
+                fall_kernel_sigma=None, fall_cost=None) -> SELAConfig:
+    """The SELA parameters of a run: those given, the archive's own for the rest."""
     from sela_ros.core.learning import archive_config
 
     given = {'planner.lookahead': lookahead, 'fall.risk.threshold': fall_risk or None,
              'gp.kernel.sigma': kernel_sigma, 'fall.kernel.sigma': fall_kernel_sigma,
              'fall.risk.cost': fall_cost, 'acquisition.ucb.alpha': alpha}
-    config = archive_config(archive, {k: v for k, v in given.items() if v is not None})
+    return archive_config(archive, {k: v for k, v in given.items() if v is not None})
+
+
+def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
+                 ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
+                 fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
+                 fall_cost=None) -> Problem:
+    config = sela_config(archive, lookahead, kernel_sigma, alpha, fall_risk,
+                         fall_kernel_sigma, fall_cost)
     return Problem(
         candidates=archive.normalised_descriptors(),
         prior_gr=archive.generic_reward,
@@ -262,11 +274,10 @@ def run(args, progress=None) -> dict:
     # On a course without --goal: the course's mission, its goals in order.
     via = [list(g) for g in course.goals[:-1]] if course and not args.goal else []
     # The parameters every run uses (the archive's own where left out), for the record.
-    used = make_problem(archive, goal, args.lookahead, args.max_steps,
-                        kernel_sigma=args.kernel_sigma, alpha=args.alpha,
-                        fall_risk=args.fall_risk,
-                        fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
-                        fall_cost=getattr(args, 'fall_cost', None)).config
+    used = sela_config(archive, args.lookahead, kernel_sigma=args.kernel_sigma,
+                       alpha=args.alpha, fall_risk=args.fall_risk,
+                       fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
+                       fall_cost=getattr(args, 'fall_cost', None)).to_dict()
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     # Each method's seeds are its slot in the full list of methods: run on their own later
     # (the campaign adding a method to a cell), they are those of a run of all of them.
@@ -336,11 +347,7 @@ def run(args, progress=None) -> dict:
                            'inflation': inflation if map_path else None,
                            'goal_eps': SELAConfig().goal_eps,
                            'ite_max_iterations': args.ite_iterations,
-                           'gp.kernel.sigma': used.gp_kernel_sigma,
-                           'acquisition.ucb.alpha': used.acquisition_ucb_alpha,
-                           'fall.risk.threshold': used.fall_risk_threshold,
-                           'fall.kernel.sigma': used.fall_kernel_sigma,
-                           'fall.risk.cost': used.fall_risk_cost,
+                           **{k: used[k] for k in RECORDED_SELA_PARAMETERS},
                            'archive': os.path.abspath(args.archive),
                            'archive_checksum': archive_checksum(archive.params),
                            'num_behaviours': len(archive),
