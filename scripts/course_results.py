@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """Run the course experiment and write its table and figures into docs/ (one command).
 
-``python scripts/course_results.py --replicates 20 --courses maze,wall_gap,corridor
---out results/courses`` runs ``sela-experiment hexapod --map <course>`` (middle right leg
-removed, SELA, the IT&E baselines and the oracle) for every course that has no
-``results.json`` under ``--out`` yet (so a stopped run resumes course by course), copies each
-course's ``paths.png`` to ``docs/figures/course_<name>.png`` and rewrites the table between
-the markers of ``docs/course_results.md``.
+``python scripts/course_results.py --archive 8d --replicates 20 --courses maze,wall_gap,corridor
+--out results/courses_8d`` runs ``sela-experiment hexapod --map <course> --archive 8d`` (middle
+right leg removed; SELA, the IT&E baselines and the oracle, or ``--methods``) for every course
+that has no ``results.json`` under ``--out`` yet (so a stopped run resumes course by course),
+copies each course's ``paths.png`` to ``docs/figures/course_<name>_<archive>.png`` and
+rewrites the table between the markers ``<!-- course table <archive>: begin -->`` and
+``... end -->`` of ``docs/course_results.md``.
 """
 import argparse
 import json
@@ -18,7 +19,12 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / 'docs' / 'course_results.md'
-BEGIN, END = '<!-- course table: begin -->', '<!-- course table: end -->'
+
+
+def markers(label):
+    return f'<!-- course table {label}: begin -->', f'<!-- course table {label}: end -->'
+
+
 LABELS = {'sela': '`sela`', 'ite_uncertainty': '`ite_uncertainty` (IT&E #1)',
           'ite_4dir': '`ite_4dir` (IT&E #2)', 'oracle': '`oracle`'}
 
@@ -47,25 +53,36 @@ def main(argv=None):
     parser.add_argument('--out', default='results/courses')
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--workers', type=int, default=1)
+    parser.add_argument('--archive', default='8d',
+                        help="the map: '8d' (shipped default), '2d' or a path (default 8d)")
+    parser.add_argument('--methods', default='sela,ite_uncertainty,ite_4dir,oracle')
     args = parser.parse_args(argv)
     from sela_ros.experiments.cli import main as experiment
 
+    label = Path(args.archive).stem if args.archive.endswith('.npz') else args.archive
+    begin, end = markers(label)
+    text = DOC.read_text()
+    if begin not in text or end not in text:
+        parser.error(f'{DOC} has no {begin} ... {end} markers for this map: add them where '
+                     'its table should go')
     docs = {}
     for course in args.courses.split(','):
         out = Path(args.out) / course
         if not (out / 'results.json').exists():
             code = experiment(['hexapod', '--map', course, '--replicates', str(args.replicates),
                                '--seed', str(args.seed), '--workers', str(args.workers),
-                               '--damage', 'remove:middle_right', '--out', str(out)])
+                               '--damage', 'remove:middle_right', '--archive', args.archive,
+                               '--methods', args.methods, '--out', str(out)])
             if code:
                 return code
         docs[course] = json.loads((out / 'results.json').read_text())
-        shutil.copyfile(out / 'paths.png', ROOT / 'docs' / 'figures' / f'course_{course}.png')
+        shutil.copyfile(out / 'paths.png',
+                        ROOT / 'docs' / 'figures' / f'course_{course}_{label}.png')
     text = DOC.read_text()
-    head, rest = text.split(BEGIN)
-    _, tail = rest.split(END)
-    DOC.write_text(f'{head}{BEGIN}\n{table(docs)}\n{END}{tail}')
-    print(f'wrote {DOC} and docs/figures/course_*.png')
+    head, rest = text.split(begin)
+    _, tail = rest.split(end)
+    DOC.write_text(f'{head}{begin}\n{table(docs)}\n{end}{tail}')
+    print(f'wrote {DOC} and docs/figures/course_*_{label}.png')
     return 0
 
 
