@@ -90,5 +90,7 @@ def test_a_method_added_later_joins_the_cells_with_the_seeds_of_a_run_of_all(tmp
                          (['--max-steps', '9'], 'max_steps 4 (asked 9)')):
         error = campaign(tmp_path / 'b', 'oracle,sela', *extra, status=2)
         assert named in error and 'Traceback' not in error
+    tiny_archive(archive, seed=1)  # another map under the same name
+    assert 'archive_checksum' in campaign(tmp_path / 'b', 'oracle,sela', status=2)
     assert added['parameters']['oracle_gaits_that_fall'] == \
         together['parameters']['oracle_gaits_that_fall']

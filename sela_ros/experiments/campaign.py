@@ -110,15 +110,17 @@ class CellMismatch(ValueError):
 
 def _expected_parameters(archive_path, args) -> dict:
     from sela_ros.core.archive import load_archive
+    from sim_bridge.experiment_env import archive_checksum
 
-    config = hexapod.sela_config(load_archive(archive_path), args.lookahead,
+    archive = load_archive(archive_path)
+    config = hexapod.sela_config(archive, args.lookahead,
                                  kernel_sigma=args.kernel_sigma, alpha=args.alpha,
                                  fall_risk=args.fall_risk,
                                  fall_kernel_sigma=args.fall_kernel_sigma,
                                  fall_cost=args.fall_cost).to_dict()
     expected = {k: config[k] for k in hexapod.RECORDED_SELA_PARAMETERS}
     expected.update(noise_std=args.noise_std, max_steps=args.max_steps,
-                    lookahead=args.lookahead)
+                    lookahead=args.lookahead, archive_checksum=archive_checksum(archive.params))
     return expected
 
 
@@ -135,22 +137,16 @@ def _check_cell(path, done, args, expected) -> None:
 
 
 def _merge_cell(done: dict, new: dict) -> dict:
-    """A cell's results with the methods of ``new`` added to those ``done`` had."""
-    for key in ('replicates', 'seed'):
-        if done.get(key) != new.get(key):
-            raise CellMismatch(f'the cell has {key} {done.get(key)}, the methods to add '
-                             f'{new.get(key)}; use another --out')
-    old_params, new_params = done.get('parameters', {}), new.get('parameters', {})
-    if old_params.get('archive_checksum') != new_params.get('archive_checksum'):
-        raise CellMismatch('the cell was run on another archive of the same name; use '
-                         'another --out')
+    """A cell's results with the methods of ``new`` added to those ``done`` had (the
+    parameters of both were checked alike by :func:`_check_cell`)."""
     merged = copy.deepcopy(done)
     merged['methods'].update(new['methods'])
     merged.setdefault('summary', {}).update(new.get('summary', {}))
     merged.setdefault('timing', {}).setdefault('methods', {}).update(
         new.get('timing', {}).get('methods', {}))
     if 'oracle' in new['methods']:
-        merged['parameters']['oracle_gaits_that_fall'] = new_params['oracle_gaits_that_fall']
+        merged['parameters']['oracle_gaits_that_fall'] = \
+            new['parameters']['oracle_gaits_that_fall']
         merged['timing']['oracle_table_seconds'] = new['timing']['oracle_table_seconds']
     return merged
 
