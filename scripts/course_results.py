@@ -50,7 +50,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--replicates', type=int, default=20)
     parser.add_argument('--courses', default='maze,wall_gap,corridor')
-    parser.add_argument('--out', default='results/courses')
+    parser.add_argument('--out', default=None,
+                        help='where the runs go (default results/courses_<archive>)')
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--workers', type=int, default=1)
     parser.add_argument('--archive', default='8d',
@@ -61,6 +62,7 @@ def main(argv=None):
 
     label = Path(args.archive).stem if args.archive.endswith('.npz') else args.archive
     begin, end = markers(label)
+    args.out = args.out or f'results/courses_{label}'
     text = DOC.read_text()
     if begin not in text or end not in text:
         parser.error(f'{DOC} has no {begin} ... {end} markers for this map: add them where '
