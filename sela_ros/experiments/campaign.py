@@ -162,8 +162,9 @@ def run(args, progress=None) -> dict:
                 path = where / 'results.json'
                 done = json.loads(path.read_text()) if path.exists() else None
                 if done:
-                    _check_cell(path, done, args, expected.setdefault(
-                        archive, _expected_parameters(archive, args)))
+                    if archive not in expected:  # loads the archive: once per archive
+                        expected[archive] = _expected_parameters(archive, args)
+                    _check_cell(path, done, args, expected[archive])
                 have = list(done['methods']) if done else []
                 missing = [m for m in args.methods if m not in have]
                 if missing:
@@ -183,7 +184,8 @@ def run(args, progress=None) -> dict:
                     if done:  # keep what the cell had; its new methods join it
                         doc = _merge_cell(done, doc)
                     atomic_write_bytes(path, json.dumps(doc, indent=1).encode())
-                doc = json.loads(path.read_text())
+                else:
+                    doc = done
                 cells.append({'archive': Path(archive).stem, 'damage': damage,
                               'goal': list(goal), 'methods': doc['methods'],
                               'replicates': doc['replicates']})
