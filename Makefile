@@ -20,7 +20,7 @@ export PYTHONDONTWRITEBYTECODE := 1
 DEMO_ARGS ?=
 TEST_ARGS ?=
 
-.PHONY: venv demo test bench lint clean map8d
+.PHONY: venv demo test bench lint clean map8d priors
 
 venv: $(VENV)/.installed
 
@@ -61,6 +61,13 @@ bench: venv
 map8d: venv
 	setsid nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 < /dev/null &
 	@echo "building in the background; progress: $${MAPBUILD_DIR:-/work/mapbuild}/build.log"
+
+# SELA's damage priors for the shipped 8-D map: every gait run on each foreseen damage
+# (14-21 minutes of one core per damage; tables already in ~/.cache/sela_ros/oracle are free).
+PRIORS_DAMAGES ?= single-legs
+WORKERS ?= 2
+priors: venv
+	$(PY) scripts/build_priors.py 8d --damages '$(PRIORS_DAMAGES)' --workers $(WORKERS)
 
 lint: venv
 	$(VENV)/bin/ruff check .

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from sela_ros.core import N_PARAMS
+from sela_ros.core.damage_priors import params_checksum
 from sela_ros.core.persistence import atomic_write
 from sim_bridge.damage import parse_damage
 from sim_bridge.environment import ObservedHexapod
@@ -102,8 +103,7 @@ class HexapodEnvironment:
 
 def archive_checksum(params) -> str:
     """SHA-256 of the archive's gait parameters (float64, C order)."""
-    data = np.ascontiguousarray(np.asarray(params, dtype=np.float64))
-    return hashlib.sha256(data.tobytes()).hexdigest()
+    return params_checksum(params)
 
 
 def default_cache_dir() -> Path:

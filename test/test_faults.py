@@ -138,6 +138,26 @@ def test_adapter_with_corrupt_archive_stays_up_and_says_why(tmp_path):
         nodes.stop()
 
 
+def test_adapter_with_unusable_damage_priors_adapts_from_the_intact_map(tmp_path):
+    corrupt = tmp_path / 'priors.npz'
+    corrupt.write_bytes(b'not a table of anything')
+    nodes = NodeProcesses({'sela_adapter': {'priors': str(corrupt)}}, names=('sela_adapter',))
+    client = Client()
+    try:
+        answer = client.call(ifc.client(client.node, ifc.ADAPT), Trigger.Request(),
+                             timeout=30)
+        assert answer.success  # the archive is loaded: the adapter works without them
+        client.spin_until(lambda: 'adapting from the intact map alone' in
+                          nodes.logs().get('sela_adapter.log', ''), timeout=30,
+                          what='the damage priors error in the log')
+        log = nodes.logs()['sela_adapter.log']
+        assert 'priors.npz: unreadable' in log and 'Traceback' not in log
+        assert nodes.alive() == {'sela_adapter': True}
+    finally:
+        client.close()
+        nodes.stop()
+
+
 def _observations(state_file):
     try:
         state = json.loads(state_file.read_text())

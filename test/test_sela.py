@@ -44,7 +44,8 @@ def test_config_dotted_names():
     assert c.goal_eps == 0.1 and c.gp_noise == 0.001
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
                                 'acquisition.ucb.alpha', 'planner.lookahead', 'goal.eps',
-                                'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost'}
+                                'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
+                                'priors.max.misfit'}
     with pytest.raises(ValueError, match="unknown SELA parameter.*gp.kernel.sgima"):
         SELAConfig.from_dict({'gp.kernel.sgima': 0.2})
     with pytest.raises(ValueError, match='goal.eps'):

@@ -161,10 +161,18 @@ class FallRisk:
         """The robot's fall rate so far, the risk of a gait far from every observed one."""
         return self.falls / (len(self._gp.indices) + SAFE_PSEUDO_STEPS)
 
-    def risk(self) -> np.ndarray:
-        """Predicted risk of falling of every gait, ``(M,)`` in ``[0, 1]``."""
+    def risk(self, prior_falls=None) -> np.ndarray:
+        """Predicted risk of falling of every gait, ``(M,)`` in ``[0, 1]``.
+
+        ``prior_falls``: ``(M,)`` what a damage prior says of each gait (1: it falls from a
+        standing start on that damage); where nothing near a gait was observed, its risk is
+        at least that (measured against the table's own rates: docs/archive.md).
+        """
         mu, _ = self._gp.query_columns()
-        return np.clip(mu[0] + self.untried_risk() * (1.0 - mu[1]), 0.0, 1.0)
+        untried = self.untried_risk()
+        if prior_falls is not None:
+            untried = np.maximum(untried, prior_falls)
+        return np.clip(mu[0] + untried * (1.0 - mu[1]), 0.0, 1.0)
 
     @property
     def observations(self):

@@ -201,3 +201,18 @@ class CandidateSetGP:
         layout to use for fast per-output arithmetic over a large archive."""
         np.maximum(self._var, 0.0, out=self._var)
         return self._mu_t, self._var
+
+    def mean_columns_with_prior(self, prior_mean) -> np.ndarray:
+        """The posterior mean ``(D, M)`` the same observations give under another prior
+        mean ``(M, D)`` (the variance does not depend on it): ``m + V^T L^-1 (Y - m(X))``,
+        O(M N D), nothing refactorised."""
+        prior_mean = np.asarray(prior_mean, dtype=float)
+        if prior_mean.shape != self.prior.shape:
+            raise ValueError(f'prior_mean must have shape {self.prior.shape}, got '
+                             f'{prior_mean.shape}')
+        n = self._chol.n
+        if not n:
+            return np.ascontiguousarray(prior_mean.T)
+        residual = self.observed - prior_mean[self._indices]
+        beta = solve_triangular(self._chol.L, residual, lower=True, check_finite=False)
+        return prior_mean.T + beta.T @ self._V[:n]

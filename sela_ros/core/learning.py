@@ -23,13 +23,14 @@ def archive_config(archive, config=None) -> SELAConfig:
     return SELAConfig.from_dict(config)
 
 
-def make_sela(archive, config=None):
+def make_sela(archive, config=None, priors=None):
     """A SE(2) SELA over the archive's behaviours (prior mean: the intact robot's GR), with
     :func:`archive_config`; the fall model takes the archive's
-    :attr:`~sela_ros.core.archive.Archive.stability` when it has one."""
+    :attr:`~sela_ros.core.archive.Archive.stability` when it has one; ``priors``: damage
+    priors for these behaviours (:mod:`sela_ros.core.damage_priors`) or None."""
     return SELA(archive.normalised_descriptors(), archive.generic_reward, SE2Motion(),
                 config=archive_config(archive, config),
-                stability=getattr(archive, 'stability', None))
+                stability=getattr(archive, 'stability', None), priors=priors)
 
 
 #: What a detection does to what was learned while adapting (``adaptation.on_detection``).

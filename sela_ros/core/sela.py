@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sela_ros.core import acquisition, fall_risk, gp
+from sela_ros.core import acquisition, damage_priors, fall_risk, gp
 from sela_ros.core.geometry import se2_compose, se2_relative
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 from sela_ros.core.validation import check_number
@@ -86,12 +86,17 @@ class SELAConfig:
     # What a fall costs, in metres of the specialised reward: UCB takes cost x risk off each
     # gait's score (0: only the threshold keeps falls away).
     fall_risk_cost: float = fall_risk.DEFAULT_COST
+    # A damage prior (a table of the gaits on a foreseen damage) is used only while its mean
+    # squared error over the steps seen is below this (units of the chaining error); 0: the
+    # tables are never used.
+    priors_max_misfit: float = damage_priors.DEFAULT_MAX_MISFIT
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             check_number(_dotted(f.name), getattr(self, f.name), low=0.0,
                          low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise',
-                                                 'fall_kernel_sigma', 'fall_risk_cost'))
+                                                 'fall_kernel_sigma', 'fall_risk_cost',
+                                                 'priors_max_misfit'))
 
     @classmethod
     def keys(cls):
@@ -130,6 +135,7 @@ class Decision:
     # The best behaviours by UCB, the chosen one first: rows (x, y, sigma, ucb) with (x, y)
     # where each is predicted to land. For observers (RViz markers), not for the choice.
     candidates: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    prior: str = 'intact'  # the prior mean in use: the intact map or a damage prior's name
 
 
 #: How many candidates a :class:`Decision` reports.
@@ -165,10 +171,14 @@ class SELA:
         stability: ``(M,)`` a feature that makes a behaviour less likely to fall (the 8-D
             hexapod map's support, :attr:`~sela_ros.core.archive.Archive.stability`): the
             risk of untried behaviours is learnt as a logistic model of it; None: one rate.
+        priors: :class:`~sela_ros.core.damage_priors.DamagePriors`, the same behaviours on
+            foreseen damages: before each choice the prior that best explains the steps seen
+            is the GPs' prior mean (``priors.max.misfit``); None: always the intact map.
     """
 
     def __init__(self, candidates_normalised, prior_gr, motion, planner: Callable | None
-                 = None, goal=None, config=None, prior_fall_rate=None, stability=None):
+                 = None, goal=None, config=None, prior_fall_rate=None, stability=None,
+                 priors=None):
         candidates = np.asarray(candidates_normalised, dtype=float)
         prior_gr = np.asarray(prior_gr, dtype=float)
         if candidates.ndim != 2:
@@ -188,6 +198,12 @@ class SELA:
         self._prior = prior_gr
         self._prior_fall_rate = prior_fall_rate
         self._stability = stability
+        if priors is not None and (priors.num_candidates != candidates.shape[0]
+                                   or priors.generic_reward.shape[2] < motion.gr_dim):
+            raise ValueError(f'damage priors are for {priors.num_candidates} behaviours with '
+                             f'{priors.generic_reward.shape[2]} outputs, this SELA has '
+                             f'{candidates.shape[0]} with {motion.gr_dim}')
+        self.priors = priors
         self.goal = None
         if goal is not None:
             self.set_goal(goal)
@@ -242,10 +258,29 @@ class SELA:
         pose = self._check_pose(pose)
         return bool(np.linalg.norm(pose[:2] - self.goal) < self.config.goal_eps)
 
+    def select_prior(self) -> damage_priors.Selection:
+        """The prior mean the next choice uses: the intact map, or the damage prior that
+        best explains the steps seen so far (:meth:`DamagePriors.select`)."""
+        if self.priors is None or not self._gp.num_samples:
+            return damage_priors.INTACT
+        fall_idx, fallen = self._fall.observations
+        idx, grs = self.observations
+        return self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                  self.config.priors_max_misfit)
+
+    def _posterior(self, selection):
+        """``(mu (k, M), var (M,), prior falls (M,) or None)`` under ``selection``."""
+        mu_t, var = self._gp.query_columns()
+        if selection.index is None:
+            return mu_t, var, None
+        table = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
+        return (self._gp.mean_columns_with_prior(table), var,
+                self.priors.fallen[selection.index].astype(float))
+
     def predict(self):
-        """Posterior over the archive: ``(mu (M, k), sigma (M,))``."""
-        mu, var = self._gp.query()
-        return mu, np.sqrt(var)
+        """Posterior over the archive: ``(mu (M, k), sigma (M,))`` (under the prior in use)."""
+        mu_t, var, _ = self._posterior(self.select_prior())
+        return mu_t.T, np.sqrt(var)
 
     def ask(self, pose, waypoint=None) -> Decision:
         """Choose the next behaviour from ``pose`` (raises PlanningError if no path).
@@ -262,14 +297,15 @@ class SELA:
                 raise RuntimeError('no goal: call set_goal() before ask()')
             path = np.asarray(self.planner(pose[:2], self.goal), dtype=float)
             waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
-        mu_t, var = self._gp.query_columns()
+        selection = self.select_prior()
+        mu_t, var, prior_falls = self._posterior(selection)
         x, y = self.motion.predict_xy_columns(pose, mu_t)
         reward = -np.hypot(x - waypoint[0], y - waypoint[1])
         sigma = np.sqrt(var)
         scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
-        risk = self._fall.risk()
+        risk = self._fall.risk(prior_falls)
         if self._fall.falls or self._prior_fall_rate is not None \
-                or self._stability is not None:
+                or self._stability is not None or prior_falls is not None:
             if self.config.fall_risk_cost:
                 scores = scores - self.config.fall_risk_cost * risk
             scores = fall_risk.safe_choice(scores, risk, self.config.fall_risk_threshold)
@@ -279,7 +315,8 @@ class SELA:
                         predicted_pose=self.motion.predict(pose, gr),
                         reward=float(reward[index]), sigma=float(sigma[index]), path=path,
                         fall_risk=float(risk[index]),
-                        candidates=top_candidates(index, x, y, sigma, scores))
+                        candidates=top_candidates(index, x, y, sigma, scores),
+                        prior=selection.name)
 
     def tell(self, index: int, observed_gr) -> None:
         """Learn that behaviour ``index`` produced the generic reward ``observed_gr``."""

@@ -78,6 +78,7 @@ class MissionStepper:
         self._verdicts = {}  # behaviour id -> verdict heard before the outcome
         self.last_id = None  # id of the latest outcome processed
         self._deadline = None  # of the reset
+        self.prior = 'intact'  # the GPs' prior mean: the intact map or a damage prior
         self._handlers = {
             io.GoalReceived: self._on_goal, io.GoalsReceived: self._on_goals,
             io.PoseObserved: self._on_pose, io.PlanReceived: self._on_plan,
@@ -347,9 +348,14 @@ class MissionStepper:
         p.deadline = now + self.config.outcome_timeout
         self.state = State.EXECUTING
         d = p.decision
+        said = []
+        if d.prior != self.prior:
+            said.append(Report(Level.INFO, f'prior: {d.prior} (was {self.prior}), the one '
+                               'that best explains the steps seen'))
+            self.prior = d.prior
         # Write-ahead: the gait in flight is recorded before it is sent, so that a restarted
         # adapter knows it and waits for its (latched) outcome instead of losing it.
-        return [self._save(), SendGait(p.behavior_id, int(d.index), d.predicted_gr,
+        return [*said, self._save(), SendGait(p.behavior_id, int(d.index), d.predicted_gr,
                                        self.logic.prediction_sigma(d), pose=tuple(p.pose),
                                        waypoint=tuple(p.waypoint), candidates=d.candidates)]
 

@@ -81,6 +81,8 @@ class Problem:
         babbling_max_iterations: random babbling trials at most (15).
         uncertainty_iterations: trials of ``ite_uncertainty`` (15).
         stability: ``(M,)`` the fall model's stability feature (SELA's ``stability``).
+        priors: damage priors (:mod:`sela_ros.core.damage_priors`) for ``sela`` only; the
+            baselines are the paper's, over the intact map.
     """
 
     candidates: np.ndarray
@@ -99,10 +101,12 @@ class Problem:
     babbling_max_iterations: int = 15
     uncertainty_iterations: int = 15
     stability: np.ndarray | None = None
+    priors: object = None
 
-    def make_sela(self) -> SELA:
+    def make_sela(self, with_priors=False) -> SELA:
         return SELA(self.candidates, self.prior_gr, self.motion, planner=self.planner,
-                    goal=self.goal, config=self.config, stability=self.stability)
+                    goal=self.goal, config=self.config, stability=self.stability,
+                    priors=self.priors if with_priors else None)
 
     def targets(self) -> np.ndarray:
         if self.ite_targets is not None:
@@ -188,7 +192,7 @@ def _exploit(env, problem, sela, learning_iterations):
 def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
     """SELA: learn while doing the task (no learning phase)."""
     env.reset()
-    sela = problem.make_sela()
+    sela = problem.make_sela(with_priors=True)
 
     def learn(index, gr, fallen):
         sela.tell_fall(index, fallen)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import functools
 import json
 import os
 from pathlib import Path
@@ -85,6 +86,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--alpha', type=arguments.non_negative_float,
                         default=SELAConfig().acquisition_ucb_alpha,
                         help="acquisition.ucb.alpha of SELA (default %(default)s, the paper's)")
+    hexapod.add_priors_arguments(parser)
     parser.add_argument('--max-steps', type=arguments.positive_int, default=100)
     parser.add_argument('--oracle-cache', default=None,
                         help='directory of cached oracle tables')
@@ -109,10 +111,9 @@ class CellMismatch(ValueError):
 
 
 def _expected_parameters(archive_path, args) -> dict:
-    from sela_ros.core.archive import load_archive
     from sim_bridge.experiment_env import archive_checksum
 
-    archive = load_archive(archive_path)
+    archive = _load_archive(archive_path)
     config = hexapod.sela_config(archive, args.lookahead,
                                  kernel_sigma=args.kernel_sigma, alpha=args.alpha,
                                  fall_risk=args.fall_risk,
@@ -124,13 +125,30 @@ def _expected_parameters(archive_path, args) -> dict:
     return expected
 
 
-def _check_cell(path, done, args, expected) -> None:
-    """Refuse to read back (or add methods to) a cell run with other parameters."""
+@functools.lru_cache(maxsize=4)
+def _load_archive(path):
+    from sela_ros.core.archive import load_archive
+
+    return load_archive(path)
+
+
+def _priors_names(archive_path, args, damage):
+    """The damage priors a cell's SELA runs with (None: none), as results.json records."""
+    priors = hexapod.load_priors(args.priors, archive_path, _load_archive(archive_path),
+                                 damage, args.priors_leave_out_own)
+    return None if priors is None else list(priors.names)
+
+
+def _check_cell(path, done, args, expected, priors) -> None:
+    """Refuse to read back (or add methods to) a cell run with other parameters (a cell
+    from before damage priors existed ran without them)."""
     have = dict(done.get('parameters', {}), replicates=done.get('replicates'),
                 seed=done.get('seed'))
     wanted = dict(expected, replicates=args.replicates, seed=args.seed)
     differ = [f'{k} {have[k]!r} (asked {v!r})' for k, v in wanted.items()
               if have.get(k) is not None and have[k] != v]
+    if have.get('damage_priors') != priors:
+        differ.append(f'damage priors {have.get("damage_priors")} (asked {priors})')
     if differ:
         raise CellMismatch(f'{path} was run with {", ".join(differ)}; use another --out '
                            'for other parameters, or remove that cell to run it again')
@@ -164,7 +182,8 @@ def run(args, progress=None) -> dict:
                 if done:
                     if archive not in expected:  # loads the archive: once per archive
                         expected[archive] = _expected_parameters(archive, args)
-                    _check_cell(path, done, args, expected[archive])
+                    _check_cell(path, done, args, expected[archive],
+                                _priors_names(archive, args, damage))
                 have = list(done['methods']) if done else []
                 missing = [m for m in args.methods if m not in have]
                 if missing:
@@ -173,7 +192,8 @@ def run(args, progress=None) -> dict:
                         lookahead=args.lookahead,
                         kernel_sigma=args.kernel_sigma,
                         fall_kernel_sigma=args.fall_kernel_sigma, fall_cost=args.fall_cost,
-                        alpha=args.alpha,
+                        alpha=args.alpha, priors=args.priors,
+                        priors_leave_out_own=args.priors_leave_out_own,
                         fall_risk=args.fall_risk or SELAConfig().fall_risk_threshold,
                         methods=missing, method_slots=have + missing,
                         max_steps=args.max_steps,

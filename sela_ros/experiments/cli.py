@@ -26,6 +26,7 @@ import re
 import sys
 from dataclasses import dataclass
 
+from sela_ros.core.damage_priors import DamagePriorError
 from sela_ros.core.persistence import atomic_write_bytes
 from sela_ros.experiments import arguments
 
@@ -94,7 +95,7 @@ def main(argv=None) -> int:
               disable=args.quiet) as bar:
         try:
             doc = module.run(args, progress=lambda: bar.update(1))
-        except getattr(module, 'CellMismatch', ()) as err:
+        except (getattr(module, 'CellMismatch', ()), DamagePriorError) as err:
             bar.close()
             parser.error(str(err))
     results_path = os.path.join(args.out, 'results.json')

@@ -134,9 +134,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         default=ITE_MAX_ITERATIONS,
                         help="IT&E trials (ite_uncertainty) and M-BOA trials per direction "
                              "(ite_4dir) at most (default %(default)s, the paper's N)")
+    add_priors_arguments(parser)
     parser.add_argument('--oracle-cache', default=None,
                         help='directory of cached oracle tables (default $SELA_CACHE_DIR or '
                              '~/.cache/sela_ros/oracle)')
+
+
+def add_priors_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--priors`` and ``--priors-leave-out-own`` (hexapod and campaign)."""
+    parser.add_argument('--priors', default='auto',
+                        help="SELA's damage priors (docs/archive.md): auto (default) = those "
+                             "shipped beside the archive if any, none = the intact map only "
+                             "(the paper's SELA), or a path to a priors .npz")
+    parser.add_argument('--priors-leave-out-own', action='store_true',
+                        help="drop the run's own damage from the damage priors, as if "
+                             'nobody had foreseen it')
 
 
 def ite_targets(prior_gr) -> np.ndarray:
@@ -150,7 +162,7 @@ def ite_targets(prior_gr) -> np.ndarray:
 
 #: SELA parameters a results.json records (resolved: the archive's own where left out).
 RECORDED_SELA_PARAMETERS = ('gp.kernel.sigma', 'acquisition.ucb.alpha', 'fall.risk.threshold',
-                            'fall.kernel.sigma', 'fall.risk.cost')
+                            'fall.kernel.sigma', 'fall.risk.cost', 'priors.max.misfit')
 
 
 def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=None,
@@ -167,7 +179,7 @@ def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=Non
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
                  fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
-                 fall_cost=None) -> Problem:
+                 fall_cost=None, priors=None) -> Problem:
     config = sela_config(archive, lookahead, kernel_sigma, alpha, fall_risk,
                          fall_kernel_sigma, fall_cost)
     return Problem(
@@ -185,6 +197,7 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
         uncertainty_iterations=ite_iterations,
         babbling_max_iterations=ite_iterations,
         stability=archive.stability,
+        priors=priors,
     )
 
 
@@ -199,6 +212,26 @@ def _worker_state(archive_path):
         _WORKER['path'] = archive_path
         _WORKER['archive'] = load_archive(archive_path)
     return _WORKER['archive']
+
+
+def load_priors(value, archive_path, archive, damage=None, leave_out_own=False):
+    """The damage priors of a run (None: the intact map only); ``leave_out_own`` drops
+    ``damage`` from them. Raises DamagePriorError."""
+    from sela_ros.core.damage_priors import resolve_priors
+
+    priors = resolve_priors(value, archive_path, archive.params)
+    if priors is not None and leave_out_own:
+        priors = priors.without(damage)
+    return priors
+
+
+def _worker_priors(value, archive_path, damage, leave_out_own):
+    key = (value, archive_path, damage, leave_out_own)
+    if _WORKER.get('priors_key') != key:
+        _WORKER['priors_key'] = key
+        _WORKER['priors'] = load_priors(value, archive_path, _worker_state(archive_path),
+                                        damage, leave_out_own)
+    return _WORKER['priors']
 
 
 def _worker_planner(map_path, inflation):
@@ -217,7 +250,7 @@ def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
      ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk, map_path, inflation,
-     via, fall_kernel_sigma, fall_cost) = job
+     via, fall_kernel_sigma, fall_cost, priors_value, leave_out_own) = job
     from sela_ros.experiments.courses import CourseEnvironment
     from sim_bridge.experiment_env import HexapodEnvironment
 
@@ -234,7 +267,9 @@ def run_method(job):
         problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
                                ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
                                alpha=alpha, fall_risk=fall_risk, planner=planner, via=via,
-                               fall_kernel_sigma=fall_kernel_sigma, fall_cost=fall_cost)
+                               fall_kernel_sigma=fall_kernel_sigma, fall_cost=fall_cost,
+                               priors=_worker_priors(priors_value, archive_path, damage,
+                                                     leave_out_own))
         result = METHODS[name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),
@@ -274,6 +309,9 @@ def run(args, progress=None) -> dict:
     # On a course without --goal: the course's mission, its goals in order.
     via = [list(g) for g in course.goals[:-1]] if course and not args.goal else []
     # The parameters every run uses (the archive's own where left out), for the record.
+    priors_value = getattr(args, 'priors', 'auto')
+    leave_out_own = bool(getattr(args, 'priors_leave_out_own', False))
+    priors = load_priors(priors_value, args.archive, archive, args.damage, leave_out_own)
     used = sela_config(archive, args.lookahead, kernel_sigma=args.kernel_sigma,
                        alpha=args.alpha, fall_risk=args.fall_risk,
                        fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
@@ -292,7 +330,7 @@ def run(args, progress=None) -> dict:
                          args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
                          args.fall_risk, map_path, inflation, via,
                          getattr(args, 'fall_kernel_sigma', None),
-                         getattr(args, 'fall_cost', None)))
+                         getattr(args, 'fall_cost', None), priors_value, leave_out_own))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -350,6 +388,7 @@ def run(args, progress=None) -> dict:
                            **{k: used[k] for k in RECORDED_SELA_PARAMETERS},
                            'archive': os.path.abspath(args.archive),
                            'archive_checksum': archive_checksum(archive.params),
+                           'damage_priors': None if priors is None else list(priors.names),
                            'num_behaviours': len(archive),
                            'oracle_gaits_that_fall': oracle_falls},
             'timing': {'wall_seconds': wall, 'workers': args.workers,

@@ -41,7 +41,7 @@ class SelaAdapter(Node):
         self.values = declare(self, params.PARAMETERS, on_change=self.parameters_callback)
         self.frame_id = self.values['frame_id']
         # The planner's map (latched) rules out goals off it at once.
-        self.archive = self.archive_path = self.stepper = self.map = None
+        self.archive = self.archive_path = self.stepper = self.map = self.priors = None
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         # Saves are written off the executor's thread; what announces a step waits for the
         # save before it (acknowledged means durable) and is released on the executor's

@@ -23,6 +23,13 @@ PARAMETERS = (
          unit=' m', read_only=True),
     Spec('fall.kernel.sigma', 0.0, "kernel length of the fall GP; 0 = the archive's (0.1 for a "
          '2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, read_only=True),
+    Spec('priors', 'auto', "damage priors: tables of the archive's gaits on foreseen damages "
+         "(docs/archive.md); 'auto' = those shipped beside the archive if any, 'none' = the "
+         'intact map only (the paper), or a path (.npz from `make priors`)',
+         read_only=True),
+    Spec('priors.max.misfit', 0.6, "a damage prior is used only while its mean squared error "
+         'over the steps seen is below this (units of 0.1 m, 0.1 m, 0.25 rad); 0 = never',
+         low=0.0, high=1e6, read_only=True),
     Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
     Spec('detector_timeout', 2.0, "wall time to wait for the detector's verdict on an outcome",
          low=0.001, high=3600.0, unit=' s'),
@@ -48,7 +55,7 @@ PARAMETERS = (
          read_only=True),
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
-             'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma')
+             'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max.misfit')
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,

@@ -7,13 +7,29 @@ import os
 from sela_ros.core import persistence
 from sela_ros.core import stepper_io as io
 from sela_ros.core.archive import ArchiveError, load_archive, resolve_archive_path
+from sela_ros.core.damage_priors import DamagePriorError, resolve_priors
 from sela_ros.core.learning import make_sela
 from sela_ros.core.stepper import MissionStepper
 from sela_ros.nodes import adapter_params as params
 
 
+def _priors(node, archive, path):
+    """The damage priors the ``priors`` parameter names for ``archive``; None (logged) if
+    there are none or they cannot be used: SELA then adapts from the intact map alone."""
+    try:
+        priors = resolve_priors(node.values['priors'], path, archive.params)
+    except DamagePriorError as exc:
+        node.get_logger().error(f'{exc}; adapting from the intact map alone')
+        return None
+    if priors is not None:
+        node.get_logger().info(f'damage priors: {len(priors)} foreseen damages '
+                               f'({", ".join(priors.names)})')
+    return priors
+
+
 def _new_stepper(node, archive):
-    return MissionStepper(make_sela(archive, params.sela_config(node.values)),
+    return MissionStepper(make_sela(archive, params.sela_config(node.values),
+                                    priors=node.priors),
                           params.stepper_config(node.values))
 
 
@@ -24,6 +40,7 @@ def use_archive(node, path):
     path = resolve_archive_path(path)
     archive, old = load_archive(path), node.stepper
     node.archive, node.archive_path = archive, path
+    node.priors = _priors(node, archive, path)
     node.stepper = _new_stepper(node, archive)
     node.sim_check.use(archive, path)
     node.get_logger().info(f'archive {path}: {len(archive)} behaviours, '

@@ -1,0 +1,217 @@
+"""Damage priors: the archive's gaits evaluated in simulation on damages foreseen offline.
+
+SELA's prior is the intact robot's map. A damaged robot moves about half as far as that map
+says (``scripts/prior_error.py``), so every gait it has not tried looks better than the ones
+it has, and it explores gaits one by one. When a damage can be foreseen (a leg lost), the
+same gaits can be evaluated offline on a simulated robot with that damage, and each such
+table is a better prior for that robot than the intact map. This is the idea of prior
+selection (Pautrat, Chatzilygeroudis and Mouret, "Bayesian optimization with automatic prior
+selection for data-efficient direct policy search", ICRA 2018), on SELA's generic rewards.
+
+:meth:`DamagePriors.select` picks, after every step, the prior that best explains what the
+robot has done so far: the intact map or one of the tables, by the likelihood of the
+observed generic rewards (Gaussian errors of :data:`RESIDUAL_SCALE`, what a gait chained
+from the last one differs from the same gait from a standing start) and of the observed
+falls. A table is used only while it explains the steps well in absolute terms too (mean
+squared error below ``max_misfit``, in units of :data:`RESIDUAL_SCALE`): a damage nobody
+foresaw is best explained by the nearest table, which can still be wrong about most gaits,
+and then the intact map with SELA's usual learning does better (docs/archive.md, "Damage
+priors"). The GPs keep their observations whatever prior is chosen; only their prior mean
+changes, so switching is free and nothing learnt is lost.
+
+ROS-free, and no simulator: ``make priors`` (``scripts/build_priors.py``) builds the tables.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+#: Scale of a table's prediction error for a gait chained from the last one (x, y in metres,
+#: yaw in radians): the measured error of chaining against a standing start is 0.07 m and
+#: 0.19 rad rms (docs/archive.md), rounded up.
+RESIDUAL_SCALE = np.array([0.1, 0.1, 0.25])
+#: Probability that a gait falls when chained, if the table says it falls from a standing
+#: start, and if the table says it stays up.
+P_FALL_IF_FALLS = 0.7
+P_FALL_IF_STANDS = 0.05
+#: The share of steps a table may get badly wrong (a gait chained from an odd posture), and
+#: how much wider their errors are: the likelihood is robust to them.
+OUTLIER_FRACTION = 0.1
+OUTLIER_SCALE = 5.0
+#: Mean squared error (units of RESIDUAL_SCALE) above which a table is not used (measured
+#: against 1.0, 1.5 and none: docs/archive.md).
+DEFAULT_MAX_MISFIT = 0.6
+FORMAT_VERSION = 1
+
+
+class DamagePriorError(ValueError):
+    """A damage-priors file that cannot be used (missing, corrupt, another archive's)."""
+
+
+def params_checksum(params) -> str:
+    """SHA-256 of an archive's gait parameters (float64, C order): what ties tables to it."""
+    data = np.ascontiguousarray(np.asarray(params, dtype=np.float64))
+    return hashlib.sha256(data.tobytes()).hexdigest()
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which prior :meth:`DamagePriors.select` chose: ``index`` into the tables (None: the
+    archive's own, the intact map), its ``name`` and its ``misfit``."""
+
+    index: int | None
+    name: str
+    misfit: float
+
+
+INTACT = Selection(None, 'intact', 0.0)
+
+
+@dataclass(frozen=True)
+class DamagePriors:
+    """Tables of every archive gait's outcome on foreseen damages.
+
+    Attributes:
+        names: ``(K,)`` damage specs (``remove:front_left``, ...).
+        generic_reward: ``(K, M, k)`` each gait's generic reward from a standing start.
+        fallen: ``(K, M)`` whether it tipped the robot over.
+        archive_checksum: :func:`params_checksum` of the archive the tables are for.
+    """
+
+    names: tuple
+    generic_reward: np.ndarray
+    fallen: np.ndarray
+    archive_checksum: str
+
+    def __post_init__(self):
+        gr, fallen = np.asarray(self.generic_reward), np.asarray(self.fallen)
+        k = len(self.names)
+        if gr.ndim != 3 or gr.shape[0] != k or fallen.shape != gr.shape[:2]:
+            raise DamagePriorError(f'damage priors: {k} names, generic_reward {gr.shape} and '
+                                   f'fallen {fallen.shape} do not match')
+        if not np.all(np.isfinite(gr)):
+            raise DamagePriorError('damage priors: generic_reward has NaN or inf')
+        if len(set(self.names)) != k:
+            raise DamagePriorError(f'damage priors: names repeat: {list(self.names)}')
+
+    def __len__(self):
+        return len(self.names)
+
+    @property
+    def num_candidates(self) -> int:
+        return self.generic_reward.shape[1]
+
+    def without(self, name: str) -> DamagePriors:
+        """The same tables less ``name`` (to measure a damage as if nobody foresaw it)."""
+        keep = [i for i, n in enumerate(self.names) if n != name]
+        return DamagePriors(tuple(self.names[i] for i in keep), self.generic_reward[keep],
+                            self.fallen[keep], self.archive_checksum)
+
+    def check_archive(self, params) -> None:
+        """Raise :class:`DamagePriorError` unless the tables are for these gaits."""
+        if len(params) != self.num_candidates or params_checksum(params) \
+                != self.archive_checksum:
+            raise DamagePriorError(
+                f'damage priors are for another archive ({self.num_candidates} gaits, '
+                f'checksum {self.archive_checksum[:12]}); this one has {len(params)} gaits, '
+                f'checksum {params_checksum(params)[:12]}: rebuild them with '
+                '`make priors` (scripts/build_priors.py)')
+
+    def select(self, base_gr, indices, observed, fall_indices=(), fallen=(),
+               max_misfit=DEFAULT_MAX_MISFIT) -> Selection:
+        """The prior that best explains the steps seen: the intact map or a table.
+
+        Args:
+            base_gr: ``(M, k)`` the archive's own generic rewards (the intact map).
+            indices, observed: the gaits learnt and their generic rewards ``(N, k)``.
+            fall_indices, fallen: every step's gait and whether it fell.
+            max_misfit: a table whose mean squared error (units of RESIDUAL_SCALE) over the
+                steps is above this is not used.
+        """
+        indices = np.asarray(indices, dtype=int).reshape(-1)
+        if not indices.size or not len(self):
+            return INTACT
+        observed = np.asarray(observed, dtype=float).reshape(indices.size, -1)
+        k = observed.shape[1]
+        fall_indices = np.asarray(fall_indices, dtype=int).reshape(-1)
+        fallen = np.asarray(fallen, dtype=bool).reshape(-1)
+        # A gait seen falling says nothing reliable about where it goes: its displacement
+        # is the tumble's. Falls are judged by the fall term instead.
+        keep = ~np.isin(indices, fall_indices[fallen])
+        scale = RESIDUAL_SCALE[:k] if k <= RESIDUAL_SCALE.size else np.ones(k) * 0.1
+        tables = np.concatenate([np.asarray(base_gr, dtype=float)[None, :, :k],
+                                 self.generic_reward[:, :, :k]])
+        falls = np.concatenate([np.zeros((1, self.num_candidates), bool), self.fallen])
+        r = (observed[keep][None] - tables[:, indices[keep]]) / scale
+        q = np.sum(r * r, axis=2)  # (tables, steps)
+        # Robust: a step is explained by the table up to the chaining error, or is one of a
+        # few surprises (a gait chained from an odd posture) that count for little.
+        wide = OUTLIER_SCALE ** 2
+        loglik = np.logaddexp(np.log1p(-OUTLIER_FRACTION) - 0.5 * q,
+                              np.log(OUTLIER_FRACTION) - 0.5 * k * np.log(wide)
+                              - 0.5 * q / wide).sum(axis=1)
+        misfit = np.median(q, axis=1) / k if q.shape[1] else np.zeros(len(tables))
+        p = np.where(falls[:, fall_indices], P_FALL_IF_FALLS, P_FALL_IF_STANDS)
+        loglik += np.sum(np.where(fallen, np.log(p), np.log1p(-p)), axis=1)
+        best = int(np.argmax(loglik))
+        if best == 0 or misfit[best] > max_misfit:
+            return Selection(None, 'intact', float(misfit[0]))
+        return Selection(best - 1, self.names[best - 1], float(misfit[best]))
+
+    def save(self, path) -> None:
+        """Write the tables (``.npz``; atomic: a reader never sees half a file)."""
+        path = Path(path)
+        tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
+        with open(tmp, 'wb') as handle:
+            np.savez_compressed(handle, names=np.array(self.names),
+                                generic_reward=self.generic_reward.astype(np.float32),
+                                fallen=self.fallen.astype(bool),
+                                archive_checksum=np.array(self.archive_checksum),
+                                format_version=np.array(FORMAT_VERSION))
+        os.replace(tmp, path)
+
+
+def load_damage_priors(path, params=None) -> DamagePriors:
+    """Read a file written by :meth:`DamagePriors.save`; with ``params`` (the archive's
+    gaits), also check that the tables are for that archive. Raises DamagePriorError."""
+    path = Path(path)
+    if not path.is_file():
+        raise DamagePriorError(f'damage priors {path}: no such file')
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            version = int(npz['format_version'])
+            if version != FORMAT_VERSION:
+                raise DamagePriorError(f'damage priors {path}: format {version}, this '
+                                       f'version reads {FORMAT_VERSION}')
+            priors = DamagePriors(tuple(str(n) for n in npz['names']),
+                                  npz['generic_reward'].astype(float),
+                                  npz['fallen'].astype(bool), str(npz['archive_checksum']))
+    except DamagePriorError:
+        raise
+    except Exception as exc:  # truncated, not an npz, missing arrays
+        raise DamagePriorError(f'damage priors {path}: unreadable ({exc})') from None
+    if params is not None:
+        priors.check_archive(params)
+    return priors
+
+
+def priors_path(archive_path) -> Path:
+    """Where an archive's damage priors are kept: ``<archive>_priors.npz`` beside it."""
+    archive_path = Path(archive_path)
+    return archive_path.with_name(f'{archive_path.stem}_priors.npz')
+
+
+def resolve_priors(value, archive_path, params) -> DamagePriors | None:
+    """A ``priors`` parameter's tables: ``none`` (or '') none; ``auto`` those beside the
+    archive if there are (else none); anything else a path, which must exist and match."""
+    value = (value or '').strip()
+    if value in ('', 'none'):
+        return None
+    if value == 'auto':
+        path = priors_path(archive_path)
+        return load_damage_priors(path, params) if path.is_file() else None
+    return load_damage_priors(value, params)

@@ -1,0 +1,191 @@
+"""Damage priors: choosing the prior that explains the steps seen, and SELA over it."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from sela_ros.core.damage_priors import (
+    DamagePriorError,
+    DamagePriors,
+    load_damage_priors,
+    params_checksum,
+    priors_path,
+    resolve_priors,
+)
+from sela_ros.core.gp import CandidateSetGP
+from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
+
+M = 300
+
+
+def world(seed=0):
+    """An intact map and two damage tables over the same M gaits."""
+    rng = np.random.default_rng(seed)
+    candidates = rng.random((M, 4))
+    intact = np.column_stack([rng.uniform(-0.6, 0.6, (M, 2)), rng.uniform(-0.5, 0.5, M)])
+    halved = intact * [0.5, 0.5, 0.5]               # every gait half as far
+    mirrored = intact * [1.0, -1.0, -1.0] * 0.6     # turns the other way
+    fallen = np.zeros((2, M), bool)
+    # On the first damage the 30 gaits that would land nearest (0.6, 0) fall.
+    fallen[0, np.argsort(np.hypot(halved[:, 0] - 0.6, halved[:, 1]))[:30]] = True
+    fallen[0, 200:203] = False
+    params = rng.random((M, 36))
+    priors = DamagePriors(('remove:front_left', 'remove:rear_left'),
+                          np.stack([halved, mirrored]), fallen, params_checksum(params))
+    return candidates, intact, priors, params
+
+
+def test_the_table_that_explains_the_steps_is_chosen_and_a_poor_fit_is_not():
+    _, intact, priors, _ = world()
+    rng = np.random.default_rng(1)
+    idx = rng.choice(M, 5, replace=False)
+    # Steps seen on a robot that moves as the second table says, give or take 3 cm.
+    seen = priors.generic_reward[1][idx] + rng.normal(0, 0.03, (5, 3))
+    chosen = priors.select(intact, idx, seen)
+    assert (chosen.index, chosen.name) == (1, 'remove:rear_left') and chosen.misfit < 0.6
+    assert priors.select(intact, idx, intact[idx]).name == 'intact'
+    assert priors.select(intact, [], np.zeros((0, 3))).name == 'intact'
+    # Nothing foreseen: the steps are far from every table (four times the first's), so
+    # the nearest table still explains them badly and the intact map is kept.
+    far = intact[idx] * [-2.0, 2.0, 1.0]
+    assert priors.select(intact, idx, far).name == 'intact'
+    assert priors.select(intact, idx, seen, max_misfit=0.0).name == 'intact'
+
+
+def test_a_fall_counts_for_the_tables_where_that_gait_falls():
+    _, intact, priors, _ = world()
+    tied = DamagePriors(priors.names, np.stack([intact * 0.5, intact * 0.5]),
+                        priors.fallen, priors.archive_checksum)
+    idx = np.flatnonzero(~priors.fallen[0])[:2]
+    seen = intact[idx] * 0.5
+    falls = int(np.flatnonzero(priors.fallen[0])[0])
+    assert not priors.fallen[0][idx].any()
+    # Same displacements in both tables: a fall of a gait that falls only in the first
+    # table picks that one.
+    assert tied.select(intact, idx, seen, [idx[0], falls], [False, True]).index == 0
+    assert tied.select(intact, idx, seen, [idx[0], falls], [False, False]).index == 1
+    # A gait that fell: its (tumbling) displacement is not held against any table.
+    odd = np.vstack([seen, [[5.0, -5.0, 3.0]]])
+    assert tied.select(intact, [*idx, falls], odd, [falls], [True]).index == 0
+
+
+def test_the_posterior_under_another_prior_is_that_of_a_gp_built_on_it():
+    candidates, intact, priors, _ = world()
+    gp = CandidateSetGP(candidates, intact, sigma=0.3, noise=0.01)
+    other = CandidateSetGP(candidates, priors.generic_reward[0], sigma=0.3, noise=0.01)
+    rng = np.random.default_rng(2)
+    assert np.allclose(gp.mean_columns_with_prior(priors.generic_reward[0]),
+                       priors.generic_reward[0].T)
+    for i in rng.choice(M, 6, replace=False):
+        y = rng.normal(0, 0.3, 3)
+        gp.add_sample(int(i), y)
+        other.add_sample(int(i), y)
+    assert np.allclose(gp.mean_columns_with_prior(priors.generic_reward[0]),
+                       other.query_columns()[0], atol=1e-9)
+    with pytest.raises(ValueError, match='shape'):
+        gp.mean_columns_with_prior(intact[:, :2])
+
+
+def test_sela_walks_on_the_table_that_fits_and_keeps_off_its_falls():
+    candidates, intact, priors, _ = world()
+    config = SELAConfig(gp_kernel_sigma=0.3, acquisition_ucb_alpha=0.0)
+    true = priors.generic_reward[0]
+    sela = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config,
+                priors=priors)
+    plain = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config)
+    assert sela.ask(np.zeros(3)).prior == 'intact'
+    for model in (sela, plain):
+        for i in (200, 201, 202):
+            model.tell_fall(i, False)
+            model.tell(i, true[i])
+    decision = sela.ask(np.zeros(3), waypoint=(0.6, 0.0))
+    assert decision.prior == 'remove:front_left'
+    # The steps seen are the table's exactly, so the posterior is the table: the gait taken
+    # is the one the table (not the intact map) lands nearest the waypoint, among those the
+    # table does not see falling.
+    land = np.hypot(true[:, 0] - 0.6, true[:, 1])
+    assert np.argmin(land) in np.flatnonzero(priors.fallen[0])  # the best one falls
+    land[priors.fallen[0]] = np.inf
+    assert decision.index == np.argmin(land)
+    assert decision.index != np.argmin(np.hypot(intact[:, 0] - 0.6, intact[:, 1]))
+    assert plain.ask(np.zeros(3), waypoint=(0.6, 0.0)).prior == 'intact'
+    # The prediction is the table's where nothing was tried.
+    mu, _ = sela.predict()
+    far = np.argmax(np.linalg.norm(candidates - candidates[200], axis=1))
+    assert np.allclose(mu[far], true[far], atol=0.05)
+    # What is learnt is kept when the choice goes back to the intact map.
+    state = sela.state_dict()
+    again = SELA(candidates, intact, SE2Motion(), config=config, priors=priors)
+    again.load_state_dict(state)
+    assert again.select_prior().name == 'remove:front_left'
+
+
+def test_sela_refuses_tables_for_another_archive():
+    candidates, intact, priors, _ = world()
+    with pytest.raises(ValueError, match='damage priors are for 300 behaviours'):
+        SELA(candidates[:10], intact[:10], SE2Motion(), priors=priors)
+
+
+def test_files_round_trip_and_bad_files_are_named(tmp_path):
+    _, _, priors, params = world()
+    archive = tmp_path / 'map.npz'
+    path = priors_path(archive)
+    assert path.name == 'map_priors.npz'
+    assert resolve_priors('auto', archive, params) is None  # none shipped beside it
+    priors.save(path)
+    back = resolve_priors('auto', archive, params)
+    assert back.names == priors.names and np.array_equal(back.fallen, priors.fallen)
+    assert np.allclose(back.generic_reward, priors.generic_reward, atol=1e-6)
+    assert resolve_priors('none', archive, params) is None
+    assert resolve_priors(str(path), archive, params).names == priors.names
+    assert back.without('remove:front_left').names == ('remove:rear_left',)
+    with pytest.raises(DamagePriorError, match='another archive'):
+        resolve_priors('auto', archive, params[:, ::-1].copy())
+    with pytest.raises(DamagePriorError, match='no such file'):
+        resolve_priors(str(tmp_path / 'missing.npz'), archive, params)
+    bad = tmp_path / 'bad.npz'
+    bad.write_bytes(path.read_bytes()[:1000])
+    with pytest.raises(DamagePriorError, match='unreadable'):
+        load_damage_priors(bad)
+    with pytest.raises(DamagePriorError, match='do not match'):
+        DamagePriors(('a',), np.zeros((2, M, 3)), np.zeros((2, M), bool), 'x')
+    with pytest.raises(DamagePriorError, match='NaN'):
+        DamagePriors(('a',), np.full((1, M, 3), np.nan), np.zeros((1, M), bool), 'x')
+
+
+def test_experiments_use_the_tables_beside_the_archive_and_refuse_other_cells(tmp_path):
+    from test_hexapod_experiment import tiny_archive
+
+    from sela_ros.core.archive import load_archive
+    from sela_ros.experiments.campaign import cell_dir
+
+    archive = tiny_archive(tmp_path / 'tiny.npz')
+    params = load_archive(archive).params
+    n = len(params)
+    DamagePriors(('remove:middle_right', 'remove:front_left'), np.zeros((2, n, 3)),
+                 np.zeros((2, n), bool), params_checksum(params)).save(priors_path(archive))
+
+    def campaign(out, *extra, status=0):
+        args = ['campaign', '--replicates', '1', '--out', str(out), '--quiet', '--archive',
+                str(archive), '--methods', 'sela', '--goals', '0.3,0', '--damages',
+                'remove:middle_right', '--max-steps', '2', *extra]
+        proc = subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', *args],
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == status, proc.stderr
+        return proc.stderr
+
+    campaign(tmp_path / 'a')
+    cell = json.loads((cell_dir(tmp_path / 'a', archive, 'remove:middle_right', [0.3, 0.0])
+                       / 'results.json').read_text())
+    assert cell['parameters']['damage_priors'] == ['remove:middle_right', 'remove:front_left']
+    assert cell['parameters']['priors.max.misfit'] == 0.6
+    for extra, named in ((['--priors', 'none'], "damage priors ['remove:middle_right', "
+                          "'remove:front_left'] (asked None)"),
+                         (['--priors-leave-out-own'], "(asked ['remove:front_left'])")):
+        error = campaign(tmp_path / 'a', *extra, status=2)
+        assert named in error and 'Traceback' not in error
+    campaign(tmp_path / 'b', '--priors-leave-out-own')
+    error = campaign(tmp_path / 'c', '--priors', str(tmp_path / 'nope.npz'), status=2)
+    assert 'nope.npz: no such file' in error and 'Traceback' not in error
