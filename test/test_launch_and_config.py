@@ -129,8 +129,8 @@ def test_config_defaults_are_the_code_defaults():
     config = _config()
     adapter = config['sela_adapter']['ros__parameters']
     for key, value in SELAConfig().to_dict().items():
-        if key in ('gp.kernel.sigma', 'fall.kernel.sigma'):  # 0: the archive's own
-            from sela_ros.core.archive import default_archive_path, load_archive
+        if key in ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon'):  # 0: the
+            from sela_ros.core.archive import default_archive_path, load_archive  # archive's
             from sela_ros.core.learning import make_sela
 
             assert adapter[key] == 0.0
@@ -138,6 +138,7 @@ def test_config_defaults_are_the_code_defaults():
             used = make_sela(shipped, {key: 0.0}).config
             assert used.gp_kernel_sigma == shipped.kernel_sigma
             assert used.fall_kernel_sigma == shipped.fall_kernel_sigma
+            assert used.planner_horizon == shipped.planner_horizon == 2
         elif key in adapter:
             assert adapter[key] == value, key
     detector = config['damage_detector']['ros__parameters']

@@ -45,7 +45,7 @@ def test_config_dotted_names():
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
                                 'acquisition.ucb.alpha', 'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
-                                'priors.max.misfit'}
+                                'priors.max.misfit', 'planner.horizon'}
     with pytest.raises(ValueError, match="unknown SELA parameter.*gp.kernel.sgima"):
         SELAConfig.from_dict({'gp.kernel.sgima': 0.2})
     with pytest.raises(ValueError, match='goal.eps'):
@@ -159,3 +159,48 @@ def test_a_mission_visits_its_goals_in_order_and_carries_learning(method):
     for goal, steps in zip([*problem.via, (2.0, 2.0)], result.goal_steps):
         assert np.linalg.norm(visits[offset + steps - 1] - goal) < 0.1
     np.testing.assert_allclose(problem.goal, (2.0, 2.0))  # the last goal again after
+
+
+def test_two_steps_ahead_keeps_the_robot_placed_for_the_next_step():
+    # Gait 0 lands on the first waypoint but turns the robot around; gait 1 stops a little
+    # short facing the same way, from where gait 1 again lands near the second waypoint.
+    gr = np.array([[0.5, 0.0, np.pi], [0.45, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    candidates = np.array([[0.0], [0.5], [1.0]])
+    chosen = {}
+    for horizon in (1, 2):
+        config = SELAConfig(acquisition_ucb_alpha=0.0, planner_horizon=horizon,
+                            planner_lookahead=0.5)
+        sela = SELA(candidates, gr, SE2Motion(), goal=(3.0, 0.0), config=config)
+        chosen[horizon] = sela.ask(np.zeros(3)).index
+        # Given the planner node's waypoint, the next one is passed in (or the stepper's
+        # extrapolation: learning.following_waypoint).
+        assert sela.ask(np.zeros(3), waypoint=(0.5, 0.0),
+                        next_waypoint_xy=(1.0, 0.0)).index == chosen[horizon]
+    assert chosen == {1: 0, 2: 1}
+    # Near the goal there is no second step: the nearest landing wins.
+    near = SELA(candidates, gr, SE2Motion(), goal=(0.5, 0.0),
+                config=SELAConfig(planner_horizon=2, planner_lookahead=0.5,
+                                  acquisition_ucb_alpha=0.0))
+    assert near.ask(np.zeros(3)).index == 0
+    with pytest.raises(ValueError, match='planner.horizon'):
+        SELAConfig(planner_horizon=3)
+
+
+@pytest.mark.parametrize('motion', [SE2Motion(), PointMotion()])
+def test_landing_distances_of_many_poses_at_once_are_those_of_each(motion):
+    rng = np.random.default_rng(4)
+    gr_t = rng.normal(0, 0.4, (motion.gr_dim, 50))
+    poses = rng.normal(0, 1, (7, motion.pose_dim))
+    target = np.array([0.3, -1.2])
+    sq = motion.landing_sq_distances(poses, gr_t, target)
+    for k, pose in enumerate(poses):
+        x, y = motion.predict_xy_columns(pose, gr_t)
+        assert np.allclose(sq[k], (x - target[0]) ** 2 + (y - target[1]) ** 2)
+
+
+def test_the_step_after_a_given_waypoint_goes_on_the_same_way_and_stops_at_the_goal():
+    from sela_ros.core.learning import following_waypoint
+
+    assert np.allclose(following_waypoint((0, 0, 1.0), (0.6, 0.0), (3.0, 0.0)), (1.2, 0.0))
+    assert np.allclose(following_waypoint((0, 0), (0.6, 0.0), (0.8, 0.0)), (0.8, 0.0))
+    assert following_waypoint((0, 0), (0.6, 0.0), (0.6, 0.0)) is None

@@ -68,6 +68,9 @@ KERNEL_SIGMA_HIGHER = 0.3
 #: Kernel length of the fall GP on a map of more than 2 dimensions: on the 8-D map a gait
 #: 0.2 away from one seen upright still falls almost as often as any (docs/archive.md).
 FALL_KERNEL_SIGMA_HIGHER = 0.12
+#: Steps SELA looks ahead on a map of more than two descriptor dimensions: two (each gait is
+#: chosen for where it leaves the robot to take the next one from; docs/archive.md).
+PLANNER_HORIZON_HIGHER = 2
 
 
 #: ``descriptor_name`` of the paper's 8-D map: final (x, y) then the six duty factors.
@@ -160,6 +163,16 @@ class Archive:
         :data:`KERNEL_SIGMA_2D` for a 2-D map and :data:`FALL_KERNEL_SIGMA_HIGHER` for more
         descriptor dimensions."""
         return self._length('fall_kernel_sigma', FALL_KERNEL_SIGMA_HIGHER)
+
+    @property
+    def planner_horizon(self) -> int:
+        """Steps SELA looks ahead with this map: metadata ``planner_horizon`` (1 or 2), else
+        1 (the paper's) for a 2-D map and :data:`PLANNER_HORIZON_HIGHER` for more descriptor
+        dimensions."""
+        value = self.metadata.get('planner_horizon')
+        if value in (1, 2) and not isinstance(value, bool):
+            return int(value)
+        return 1 if self.descriptors.shape[1] <= 2 else PLANNER_HORIZON_HIGHER
 
     def _length(self, key, higher):
         """A kernel length: metadata ``key`` if usable, else the 2-D or ``higher`` default."""

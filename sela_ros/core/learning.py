@@ -11,15 +11,18 @@ from sela_ros.core.stepper_io import StepRecord
 
 
 def archive_config(archive, config=None) -> SELAConfig:
-    """SELA parameters for ``archive``: ``config`` (dotted names), where ``gp.kernel.sigma``
-    and ``fall.kernel.sigma`` left out (or 0) are the archive's own
+    """SELA parameters for ``archive``: ``config`` (dotted names), where ``gp.kernel.sigma``,
+    ``fall.kernel.sigma`` and ``planner.horizon`` left out (or 0) are the archive's own
     (:attr:`~sela_ros.core.archive.Archive.kernel_sigma`,
-    :attr:`~sela_ros.core.archive.Archive.fall_kernel_sigma`)."""
+    :attr:`~sela_ros.core.archive.Archive.fall_kernel_sigma`,
+    :attr:`~sela_ros.core.archive.Archive.planner_horizon`)."""
     config = dict(config or {})
     if not config.get('gp.kernel.sigma'):
         config['gp.kernel.sigma'] = archive.kernel_sigma
     if not config.get('fall.kernel.sigma'):
         config['fall.kernel.sigma'] = getattr(archive, 'fall_kernel_sigma', 0.0)
+    if not config.get('planner.horizon'):
+        config['planner.horizon'] = getattr(archive, 'planner_horizon', 1)
     return SELAConfig.from_dict(config)
 
 
@@ -31,6 +34,19 @@ def make_sela(archive, config=None, priors=None):
     return SELA(archive.normalised_descriptors(), archive.generic_reward, SE2Motion(),
                 config=archive_config(archive, config),
                 stability=getattr(archive, 'stability', None), priors=priors)
+
+
+def following_waypoint(pose, waypoint, goal):
+    """The waypoint of the step after the one toward ``waypoint``, when only that waypoint
+    is known (the planner node answers with the path to it): as far again in the same
+    direction, not past the goal; None when ``waypoint`` is the goal."""
+    pose, waypoint, goal = (np.asarray(v, dtype=float).reshape(-1)[:2]
+                            for v in (pose, waypoint, goal))
+    step, left = waypoint - pose, float(np.linalg.norm(goal - waypoint))
+    length = float(np.linalg.norm(step))
+    if left < 1e-6 or length < 1e-9:
+        return None
+    return waypoint + step / length * min(length, left)
 
 
 #: What a detection does to what was learned while adapting (``adaptation.on_detection``).
@@ -63,9 +79,12 @@ class MissionLogic:
         self.last = None  # (index, learnt generic reward) of the latest outcome
         self.records = []
 
-    def decide(self, pose, waypoint):
-        """The behaviour to execute from ``pose`` toward ``waypoint``."""
-        return self.sela.ask(np.asarray(pose, dtype=float), waypoint=waypoint)
+    def decide(self, pose, waypoint, goal=None):
+        """The behaviour to execute from ``pose`` toward ``waypoint``; with ``goal``, SELA
+        may look one step further (``planner.horizon`` 2: :func:`following_waypoint`)."""
+        following = None if goal is None else following_waypoint(pose, waypoint, goal)
+        return self.sela.ask(np.asarray(pose, dtype=float), waypoint=waypoint,
+                             next_waypoint_xy=following)
 
     def outcome(self, decision, pose, observed_gr, fallen=False, true_pose=None):
         """Record the outcome of ``decision`` and learn from it when adapting."""

@@ -34,6 +34,13 @@ class PointMotion:
         """Predicted ``(x (M,), y (M,))`` from GRs given as rows ``gr_t`` (k, M)."""
         return pose[0] + gr_t[0], pose[1] + gr_t[1]
 
+    def landing_sq_distances(self, poses, gr_t, target):
+        """``(K, M)`` squared distances from ``target`` of where each of the M behaviours
+        (GRs as rows ``gr_t``) lands from each of the K ``poses`` (rows)."""
+        a = np.asarray(poses, dtype=float)[:, :2] - np.asarray(target, dtype=float)[:2]
+        return (np.sum(a * a, axis=1)[:, None] + np.sum(gr_t[:2] ** 2, axis=0)[None, :]
+                + 2.0 * (a @ gr_t[:2]))
+
     def generic_reward(self, pose_before, pose_after):
         """``afun``: the displacement between two poses."""
         return np.asarray(pose_after, dtype=float)[:2] - np.asarray(pose_before, dtype=float)[:2]
@@ -53,6 +60,18 @@ class SE2Motion:
         """Predicted ``(x (M,), y (M,))`` from GRs given as rows ``gr_t`` (k, M)."""
         c, s = math.cos(pose[2]), math.sin(pose[2])
         return pose[0] + c * gr_t[0] - s * gr_t[1], pose[1] + s * gr_t[0] + c * gr_t[1]
+
+    def landing_sq_distances(self, poses, gr_t, target):
+        """``(K, M)`` squared distances from ``target`` of where each of the M behaviours
+        (GRs as rows ``gr_t``) lands from each of the K ``poses`` (rows): the rotation
+        keeps lengths, so it is ``|a|^2 + |g|^2 + 2 (a . R g)``, a rank-2 product."""
+        poses = np.asarray(poses, dtype=float)
+        a = poses[:, :2] - np.asarray(target, dtype=float)[:2]
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        # a . R g = g0 (a0 c + a1 s) + g1 (a1 c - a0 s)
+        rotated = np.column_stack([a[:, 0] * c + a[:, 1] * s, a[:, 1] * c - a[:, 0] * s])
+        return (np.sum(a * a, axis=1)[:, None] + np.sum(gr_t[:2] ** 2, axis=0)[None, :]
+                + 2.0 * (rotated @ gr_t[:2]))
 
     def generic_reward(self, pose_before, pose_after):
         """``afun``: world displacement rotated into the start frame, yaw change wrapped."""
@@ -77,6 +96,10 @@ class SELAConfig:
     gp_noise: float = gp.DEFAULT_NOISE
     acquisition_ucb_alpha: float = acquisition.DEFAULT_ALPHA
     planner_lookahead: float = 0.1
+    # Steps looked ahead: 1, the paper's (the gait landing nearest the waypoint), or 2 (the
+    # gait from whose predicted end pose the best next gait lands nearest a second waypoint
+    # as far again along the path). Maps set their own (learning.archive_config).
+    planner_horizon: float = 1.0
     goal_eps: float = 0.1
     # Risk of falling accepted (fall-aware acquisition); 1 or more: falls are not avoided.
     fall_risk_threshold: float = fall_risk.DEFAULT_THRESHOLD
@@ -97,6 +120,9 @@ class SELAConfig:
                          low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise',
                                                  'fall_kernel_sigma', 'fall_risk_cost',
                                                  'priors_max_misfit'))
+        if self.planner_horizon not in HORIZONS:
+            raise ValueError(f'planner.horizon must be one of {HORIZONS}, got '
+                             f'{self.planner_horizon!r}')
 
     @classmethod
     def keys(cls):
@@ -114,6 +140,12 @@ class SELAConfig:
 
     def to_dict(self) -> dict:
         return {_dotted(k): v for k, v in dataclasses.asdict(self).items()}
+
+
+#: Steps SELA can look ahead (``planner.horizon``).
+HORIZONS = (1, 2)
+#: With two steps: how many of the best first gaits (by the one-step score) are looked at.
+TWO_STEP_CANDIDATES = 40
 
 
 def _dotted(name):
@@ -282,21 +314,28 @@ class SELA:
         mu_t, var, _ = self._posterior(self.select_prior())
         return mu_t.T, np.sqrt(var)
 
-    def ask(self, pose, waypoint=None) -> Decision:
+    def ask(self, pose, waypoint=None, next_waypoint_xy=None) -> Decision:
         """Choose the next behaviour from ``pose`` (raises PlanningError if no path).
 
         ``waypoint``: the reward selection layer's answer when it runs elsewhere (the
         planner node); None: plan to the goal here and take ``planner.lookahead`` along it.
+        ``next_waypoint_xy``: with ``planner.horizon`` 2 and a given ``waypoint``, the
+        waypoint of the step after (None: the last step before the goal, one step only).
         """
         pose = self._check_pose(pose)
+        second = None
         if waypoint is not None:
             waypoint = np.asarray(waypoint, dtype=float).reshape(-1)[:2]
             path = np.array([pose[:2], waypoint])
+            if next_waypoint_xy is not None:
+                second = np.asarray(next_waypoint_xy, dtype=float).reshape(-1)[:2]
         else:
             if self.goal is None:
                 raise RuntimeError('no goal: call set_goal() before ask()')
             path = np.asarray(self.planner(pose[:2], self.goal), dtype=float)
             waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
+            if self.config.planner_horizon > 1:
+                second = next_waypoint(path, pose[:2], 2 * self.config.planner_lookahead)
         selection = self.select_prior()
         mu_t, var, prior_falls = self._posterior(selection)
         x, y = self.motion.predict_xy_columns(pose, mu_t)
@@ -304,12 +343,17 @@ class SELA:
         sigma = np.sqrt(var)
         scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
         risk = self._fall.risk(prior_falls)
-        if self._fall.falls or self._prior_fall_rate is not None \
-                or self._stability is not None or prior_falls is not None:
+        fall_aware = bool(self._fall.falls or self._prior_fall_rate is not None
+                          or self._stability is not None or prior_falls is not None)
+        if fall_aware:
             if self.config.fall_risk_cost:
                 scores = scores - self.config.fall_risk_cost * risk
             scores = fall_risk.safe_choice(scores, risk, self.config.fall_risk_threshold)
         index = int(np.argmax(scores))
+        if self.config.planner_horizon > 1 and second is not None \
+                and np.linalg.norm(second - waypoint) > 1e-6:
+            index = self._two_step_choice(pose, mu_t, scores, risk if fall_aware else None,
+                                          second, index)
         gr = mu_t[:, index].copy()
         return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
                         predicted_pose=self.motion.predict(pose, gr),
@@ -317,6 +361,28 @@ class SELA:
                         fall_risk=float(risk[index]),
                         candidates=top_candidates(index, x, y, sigma, scores),
                         prior=selection.name)
+
+    def _two_step_choice(self, pose, mu_t, scores, risk, second, index):
+        """Among the :data:`TWO_STEP_CANDIDATES` best gaits by ``scores``, the one from whose
+        predicted end pose the best next gait (risk weighed as in the first step) lands
+        nearest ``second``; ``index`` if no gait is allowed."""
+        finite = np.flatnonzero(np.isfinite(scores))
+        if not finite.size:
+            return index
+        top = finite[np.argsort(-scores[finite], kind='stable')[:TWO_STEP_CANDIDATES]]
+        c = self.config
+        if risk is None:
+            penalty = first = 0.0
+        else:
+            penalty = np.where(risk <= c.fall_risk_threshold, c.fall_risk_cost * risk, np.inf)
+            first = c.fall_risk_cost * risk
+        # Every candidate's end pose at once: (K, M) distances of the next gaits' landings.
+        ends = self.motion.predict(pose, mu_t[:, top].T).reshape(len(top), -1)
+        sq = self.motion.landing_sq_distances(ends, mu_t, second)
+        value = np.max(-np.sqrt(np.maximum(sq, 0.0, out=sq), out=sq) - penalty, axis=1)
+        if risk is not None:
+            value = value - first[top]
+        return int(top[int(np.argmax(value))]) if np.isfinite(value).any() else index
 
     def tell(self, index: int, observed_gr) -> None:
         """Learn that behaviour ``index`` produced the generic reward ``observed_gr``."""

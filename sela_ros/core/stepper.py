@@ -341,7 +341,7 @@ class MissionStepper:
             return []
         self._plan = None
         p.waypoint = plan.waypoint
-        p.decision = self.logic.decide(p.pose, p.waypoint)
+        p.decision = self.logic.decide(p.pose, p.waypoint, self.goal)
         p.behavior_id = self.next_id
         self.next_id += 1
         p.t_sent = now

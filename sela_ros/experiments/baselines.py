@@ -82,7 +82,7 @@ class Problem:
         uncertainty_iterations: trials of ``ite_uncertainty`` (15).
         stability: ``(M,)`` the fall model's stability feature (SELA's ``stability``).
         priors: damage priors (:mod:`sela_ros.core.damage_priors`) for ``sela`` only; the
-            baselines are the paper's, over the intact map.
+            baselines are the paper's, over the intact map and one step ahead.
     """
 
     candidates: np.ndarray
@@ -103,10 +103,15 @@ class Problem:
     stability: np.ndarray | None = None
     priors: object = None
 
-    def make_sela(self, with_priors=False) -> SELA:
+    def make_sela(self, extensions=False) -> SELA:
+        """A SELA over the problem; ``extensions``: with what this project adds to the
+        paper's SELA (damage priors, two steps ahead), else as the paper's baselines use it
+        (no priors, one step)."""
+        config = self.config if extensions else \
+            dataclasses.replace(self.config, planner_horizon=1.0)
         return SELA(self.candidates, self.prior_gr, self.motion, planner=self.planner,
-                    goal=self.goal, config=self.config, stability=self.stability,
-                    priors=self.priors if with_priors else None)
+                    goal=self.goal, config=config, stability=self.stability,
+                    priors=self.priors if extensions else None)
 
     def targets(self) -> np.ndarray:
         if self.ite_targets is not None:
@@ -192,7 +197,7 @@ def _exploit(env, problem, sela, learning_iterations):
 def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
     """SELA: learn while doing the task (no learning phase)."""
     env.reset()
-    sela = problem.make_sela(with_priors=True)
+    sela = problem.make_sela(extensions=True)
 
     def learn(index, gr, fallen):
         sela.tell_fall(index, fallen)

@@ -106,6 +106,11 @@ def cell_dir(out, archive, damage, goal) -> Path:
     return Path(out) / _slug(Path(archive).stem) / _slug(damage) / _slug(goal_text)
 
 
+#: What a parameter missing from a cell's results.json was: the cells from before it existed
+#: ran one step ahead.
+ABSENT_MEANS = {'planner.horizon': 1.0}
+
+
 class CellMismatch(ValueError):
     """A cell already in ``--out`` was run with other parameters than those asked."""
 
@@ -118,6 +123,7 @@ def _expected_parameters(archive_path, args) -> dict:
                                  kernel_sigma=args.kernel_sigma, alpha=args.alpha,
                                  fall_risk=args.fall_risk,
                                  fall_kernel_sigma=args.fall_kernel_sigma,
+                                 horizon=args.horizon,
                                  fall_cost=args.fall_cost).to_dict()
     expected = {k: config[k] for k in hexapod.RECORDED_SELA_PARAMETERS}
     expected.update(noise_std=args.noise_std, max_steps=args.max_steps,
@@ -142,7 +148,7 @@ def _priors_names(archive_path, args, damage):
 def _check_cell(path, done, args, expected, priors) -> None:
     """Refuse to read back (or add methods to) a cell run with other parameters (a cell
     from before damage priors existed ran without them)."""
-    have = dict(done.get('parameters', {}), replicates=done.get('replicates'),
+    have = dict(ABSENT_MEANS, **done.get('parameters', {}), replicates=done.get('replicates'),
                 seed=done.get('seed'))
     wanted = dict(expected, replicates=args.replicates, seed=args.seed)
     differ = [f'{k} {have[k]!r} (asked {v!r})' for k, v in wanted.items()
@@ -192,7 +198,7 @@ def run(args, progress=None) -> dict:
                         lookahead=args.lookahead,
                         kernel_sigma=args.kernel_sigma,
                         fall_kernel_sigma=args.fall_kernel_sigma, fall_cost=args.fall_cost,
-                        alpha=args.alpha, priors=args.priors,
+                        alpha=args.alpha, priors=args.priors, horizon=args.horizon,
                         priors_leave_out_own=args.priors_leave_out_own,
                         fall_risk=args.fall_risk or SELAConfig().fall_risk_threshold,
                         methods=missing, method_slots=have + missing,

@@ -141,7 +141,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_priors_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--priors`` and ``--priors-leave-out-own`` (hexapod and campaign)."""
+    """``--priors``, ``--priors-leave-out-own`` and ``--horizon`` (hexapod and campaign)."""
+    parser.add_argument('--horizon', type=int, choices=(1, 2), default=None,
+                        help="planner.horizon of SELA: steps looked ahead (default: the "
+                             "archive's: 1, the paper's, on the 2-D map, 2 on the 8-D map)")
     parser.add_argument('--priors', default='auto',
                         help="SELA's damage priors (docs/archive.md): auto (default) = those "
                              "shipped beside the archive if any, none = the intact map only "
@@ -162,26 +165,28 @@ def ite_targets(prior_gr) -> np.ndarray:
 
 #: SELA parameters a results.json records (resolved: the archive's own where left out).
 RECORDED_SELA_PARAMETERS = ('gp.kernel.sigma', 'acquisition.ucb.alpha', 'fall.risk.threshold',
-                            'fall.kernel.sigma', 'fall.risk.cost', 'priors.max.misfit')
+                            'fall.kernel.sigma', 'fall.risk.cost', 'priors.max.misfit',
+                            'planner.horizon')
 
 
 def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=None,
-                fall_kernel_sigma=None, fall_cost=None) -> SELAConfig:
+                fall_kernel_sigma=None, fall_cost=None, horizon=None) -> SELAConfig:
     """The SELA parameters of a run: those given, the archive's own for the rest."""
     from sela_ros.core.learning import archive_config
 
     given = {'planner.lookahead': lookahead, 'fall.risk.threshold': fall_risk or None,
              'gp.kernel.sigma': kernel_sigma, 'fall.kernel.sigma': fall_kernel_sigma,
-             'fall.risk.cost': fall_cost, 'acquisition.ucb.alpha': alpha}
+             'fall.risk.cost': fall_cost, 'acquisition.ucb.alpha': alpha,
+             'planner.horizon': horizon}
     return archive_config(archive, {k: v for k, v in given.items() if v is not None})
 
 
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
                  fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
-                 fall_cost=None, priors=None) -> Problem:
+                 fall_cost=None, priors=None, horizon=None) -> Problem:
     config = sela_config(archive, lookahead, kernel_sigma, alpha, fall_risk,
-                         fall_kernel_sigma, fall_cost)
+                         fall_kernel_sigma, fall_cost, horizon)
     return Problem(
         candidates=archive.normalised_descriptors(),
         prior_gr=archive.generic_reward,
@@ -250,7 +255,7 @@ def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
      ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk, map_path, inflation,
-     via, fall_kernel_sigma, fall_cost, priors_value, leave_out_own) = job
+     via, fall_kernel_sigma, fall_cost, priors_value, leave_out_own, horizon) = job
     from sela_ros.experiments.courses import CourseEnvironment
     from sim_bridge.experiment_env import HexapodEnvironment
 
@@ -269,7 +274,7 @@ def run_method(job):
                                alpha=alpha, fall_risk=fall_risk, planner=planner, via=via,
                                fall_kernel_sigma=fall_kernel_sigma, fall_cost=fall_cost,
                                priors=_worker_priors(priors_value, archive_path, damage,
-                                                     leave_out_own))
+                                                     leave_out_own), horizon=horizon)
         result = METHODS[name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),
@@ -315,7 +320,8 @@ def run(args, progress=None) -> dict:
     used = sela_config(archive, args.lookahead, kernel_sigma=args.kernel_sigma,
                        alpha=args.alpha, fall_risk=args.fall_risk,
                        fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
-                       fall_cost=getattr(args, 'fall_cost', None)).to_dict()
+                       fall_cost=getattr(args, 'fall_cost', None),
+                       horizon=getattr(args, 'horizon', None)).to_dict()
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     # Each method's seeds are its slot in the full list of methods: run on their own later
     # (the campaign adding a method to a cell), they are those of a run of all of them.
@@ -330,7 +336,8 @@ def run(args, progress=None) -> dict:
                          args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
                          args.fall_risk, map_path, inflation, via,
                          getattr(args, 'fall_kernel_sigma', None),
-                         getattr(args, 'fall_cost', None), priors_value, leave_out_own))
+                         getattr(args, 'fall_cost', None), priors_value, leave_out_own,
+                         getattr(args, 'horizon', None)))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()

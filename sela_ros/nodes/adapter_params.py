@@ -23,6 +23,10 @@ PARAMETERS = (
          unit=' m', read_only=True),
     Spec('fall.kernel.sigma', 0.0, "kernel length of the fall GP; 0 = the archive's (0.1 for a "
          '2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, read_only=True),
+    Spec('planner.horizon', 0, "steps looked ahead: 1 = the paper's (the gait landing nearest "
+         'the waypoint), 2 = the gait that leaves the robot best placed for the next one; 0 '
+         "= the archive's (1 for a 2-D map, 2 for the 8-D map)", low=0, high=2,
+         read_only=True),
     Spec('priors', 'auto', "damage priors: tables of the archive's gaits on foreseen damages "
          "(docs/archive.md); 'auto' = those shipped beside the archive if any, 'none' = the "
          'intact map only (the paper), or a path (.npz from `make priors`)',
@@ -55,7 +59,8 @@ PARAMETERS = (
          read_only=True),
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
-             'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max.misfit')
+             'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max.misfit',
+             'planner.horizon')
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
