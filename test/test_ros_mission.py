@@ -85,14 +85,18 @@ def _in_process_mission(damage, seed, goal, on_step=None):
     grid = grid_from_description(plan['map.resolution'], plan['map.origin'], plan['map.width'],
                                  plan['map.height'], plan.get('map.obstacles', []))
     sela_config = {k: adapter[k] for k in ('gp.kernel.sigma', 'gp.noise',
-                                           'acquisition.ucb.alpha', 'goal.eps')}
+                                           'acquisition.ucb.alpha', 'goal.eps',
+                                           'planner.horizon', 'priors.max.misfit')}
+    from sela_ros.core.damage_priors import resolve_priors  # the adapter's, as it loads them
+    priors = resolve_priors(adapter['priors'], default_archive_path(), archive.params)
+    assert priors is not None and len(priors) == 6
     det = DetectorConfig(**{k.split('.', 1)[1]: v for k, v in detector.items()
                             if k.startswith('detection.')})
     planner = GridPlanner(grid, inflation=plan['planner.inflation'])
     return run_mission(env, archive, goal, planner,
                        lookahead=plan['planner.lookahead'], sela_config=sela_config,
                        detector_config=det, max_steps=adapter['max_steps'], on_step=on_step,
-                       reset_on_fall=adapter['reset_on_fall'])
+                       reset_on_fall=adapter['reset_on_fall'], priors=priors)
 
 
 @pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'remove:middle_right',

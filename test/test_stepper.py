@@ -482,3 +482,21 @@ def test_a_new_detection_while_adapting_keeps_what_was_learned_unless_the_eviden
     learned = len(logic.sela.observations[0])
     assert logic.adapt() is kept
     assert len(logic.sela.observations[0]) == (learned if kept else 1)
+
+
+def test_the_prior_in_use_is_reported_when_a_damage_prior_takes_over():
+    from sela_ros.core.damage_priors import DamagePriors
+
+    sela = _sela()
+    table = np.tile(FORWARD, (sela.num_candidates, 1))  # on this damage every gait goes 0.2 m
+    sela.priors = DamagePriors(('remove:front_left',), table[None], np.zeros((1, 50), bool),
+                               'unchecked')
+    d = Driver(adapt_on_start=True)
+    d.stepper = MissionStepper(sela, StepperConfig(adapt_on_start=True))
+    request = d.start(goal=(3.0, 0.0))
+    request = d.step(request)  # the outcome is the table's, not the intact map's
+    assert not [r for r in of(d.log, Report) if r.message.startswith('prior:')]
+    d.log = []
+    only(d.plan(request), SendGait)
+    said = [r.message for r in of(d.log, Report)]
+    assert any(m.startswith('prior: remove:front_left (was intact)') for m in said), said

@@ -53,7 +53,7 @@ def as_seen_in_odometry(pose):
 
 def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
                 detector_config=None, max_steps=100, adapt_on_start=False, on_step=None,
-                reset_on_fall=False, on_detection='reset'):
+                reset_on_fall=False, on_detection='reset', priors=None):
     """Run the whole mission in process against ``env`` (an ObservedHexapod-like object).
 
     The first step starts from the robot's odometry, later ones from the observed pose after
@@ -61,9 +61,10 @@ def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
     ends fallen is followed by ``env.reset()`` (the robot back at the start) and the next
     step starts from the odometry, as the node does through ``/sim_bridge/reset``.
     Returns ``(success, logic)``; success is judged on the observed pose within ``goal.eps``,
-    as the adapter judges it; ``logic.records`` lists the steps.
+    as the adapter judges it; ``logic.records`` lists the steps. ``priors``: SELA's damage
+    priors (:func:`~sela_ros.core.damage_priors.resolve_priors`), as the adapter's.
     """
-    stepper = MissionStepper(make_sela(archive, sela_config), StepperConfig(
+    stepper = MissionStepper(make_sela(archive, sela_config, priors=priors), StepperConfig(
         max_steps=max_steps, adapt_on_start=adapt_on_start, reset_on_fall=reset_on_fall,
         on_detection=on_detection))
     detector = DamageDetector(detector_config or DetectorConfig())

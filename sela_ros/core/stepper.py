@@ -350,7 +350,7 @@ class MissionStepper:
         d = p.decision
         said = []
         if d.prior != self.prior:
-            said.append(Report(Level.INFO, f'prior: {d.prior} (was {self.prior}), the one '
+            said.append(Report(Level.OK, f'prior: {d.prior} (was {self.prior}), the one '
                                'that best explains the steps seen'))
             self.prior = d.prior
         # Write-ahead: the gait in flight is recorded before it is sent, so that a restarted
