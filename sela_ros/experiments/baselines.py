@@ -299,10 +299,27 @@ def run_oracle(env, problem: Problem, rng: np.random.Generator) -> RunResult:
     return _task_phase(env, problem, choose)
 
 
+def run_oracle_2step(env, problem: Problem, rng: np.random.Generator) -> RunResult:
+    """The oracle looking two steps ahead as SELA does (``planner.horizon`` 2): it knows the
+    damaged robot's outcomes and its true pose, and of the best first gaits takes the one
+    after which the best second gait lands nearest a second waypoint. SELA with two steps
+    ahead can beat the greedy :func:`run_oracle`; this is the bound for it."""
+    if problem.true_gr is None:
+        raise ValueError('oracle_2step needs Problem.true_gr (the damaged robot\'s outcomes)')
+    env.reset()
+    config = dataclasses.replace(problem.config, acquisition_ucb_alpha=0.0,
+                                 planner_horizon=2.0)
+    knows = SELA(problem.candidates, np.asarray(problem.true_gr, dtype=float), problem.motion,
+                 planner=problem.planner, goal=problem.goal, config=config)
+    choose = _ask(knows, problem)
+    return _task_phase(env, problem, lambda _observed: choose(env.true_pose()))
+
+
 METHODS = {
     'sela': run_sela,
     'random_babbling': run_random_babbling,
     'ite_4dir': run_ite_4dir,
     'ite_uncertainty': run_ite_uncertainty,
     'oracle': run_oracle,
+    'oracle_2step': run_oracle_2step,
 }

@@ -298,7 +298,7 @@ def run(args, progress=None) -> dict:
     oracle_gr = None
     oracle_seconds = 0.0
     oracle_falls = 0
-    if 'oracle' in args.methods:
+    if {'oracle', 'oracle_2step'} & set(args.methods):
         start = time.perf_counter()
         gr, fallen = oracle_table(archive.params, args.damage, workers=args.workers,
                                   cache_dir=args.oracle_cache, dt=settings['dt'],
