@@ -189,3 +189,31 @@ def test_experiments_use_the_tables_beside_the_archive_and_refuse_other_cells(tm
     campaign(tmp_path / 'b', '--priors-leave-out-own')
     error = campaign(tmp_path / 'c', '--priors', str(tmp_path / 'nope.npz'), status=2)
     assert 'nope.npz: no such file' in error and 'Traceback' not in error
+
+
+def test_cells_without_sela_do_not_care_about_sela_only_parameters(tmp_path):
+    from test_hexapod_experiment import tiny_archive
+
+    from sela_ros.core.archive import load_archive
+
+    archive = tiny_archive(tmp_path / 'tiny.npz')
+    params = load_archive(archive).params
+    n = len(params)
+
+    def campaign(methods, *extra, status=0):
+        args = ['campaign', '--replicates', '1', '--out', str(tmp_path / 'a'), '--quiet',
+                '--archive', str(archive), '--methods', methods, '--goals', '0.3,0',
+                '--damages', 'remove:middle_right', '--max-steps', '2',
+                '--oracle-cache', str(tmp_path / 'cache'), *extra]
+        proc = subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', *args],
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == status, proc.stderr
+        return proc.stderr
+
+    campaign('ite_uncertainty')  # no tables beside the archive yet
+    DamagePriors(('remove:front_left',), np.zeros((1, n, 3)), np.zeros((1, n), bool),
+                 params_checksum(params)).save(priors_path(archive))
+    campaign('ite_uncertainty', '--horizon', '1')  # read back: IT&E uses neither
+    error = campaign('ite_uncertainty,sela', status=2)  # SELA would run with the tables
+    assert "damage priors None (asked ['remove:front_left'])" in error
+    campaign('ite_uncertainty,sela', '--priors', 'none')
