@@ -38,8 +38,10 @@ class PointMotion:
         """``(K, M)`` squared distances from ``target`` of where each of the M behaviours
         (GRs as rows ``gr_t``) lands from each of the K ``poses`` (rows)."""
         a = np.asarray(poses, dtype=float)[:, :2] - np.asarray(target, dtype=float)[:2]
-        return (np.sum(a * a, axis=1)[:, None] + np.sum(gr_t[:2] ** 2, axis=0)[None, :]
-                + 2.0 * (a @ gr_t[:2]))
+        out = (2.0 * a) @ gr_t[:2]
+        out += np.sum(a * a, axis=1)[:, None]
+        out += np.sum(gr_t[:2] ** 2, axis=0)[None, :]
+        return out
 
     def generic_reward(self, pose_before, pose_after):
         """``afun``: the displacement between two poses."""
@@ -70,8 +72,10 @@ class SE2Motion:
         c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
         # a . R g = g0 (a0 c + a1 s) + g1 (a1 c - a0 s)
         rotated = np.column_stack([a[:, 0] * c + a[:, 1] * s, a[:, 1] * c - a[:, 0] * s])
-        return (np.sum(a * a, axis=1)[:, None] + np.sum(gr_t[:2] ** 2, axis=0)[None, :]
-                + 2.0 * (rotated @ gr_t[:2]))
+        out = (2.0 * rotated) @ gr_t[:2]
+        out += np.sum(a * a, axis=1)[:, None]
+        out += np.sum(gr_t[:2] ** 2, axis=0)[None, :]
+        return out
 
     def generic_reward(self, pose_before, pose_after):
         """``afun``: world displacement rotated into the start frame, yaw change wrapped."""
@@ -378,8 +382,11 @@ class SELA:
             first = c.fall_risk_cost * risk
         # Every candidate's end pose at once: (K, M) distances of the next gaits' landings.
         ends = self.motion.predict(pose, mu_t[:, top].T).reshape(len(top), -1)
-        sq = self.motion.landing_sq_distances(ends, mu_t, second)
-        value = np.max(-np.sqrt(np.maximum(sq, 0.0, out=sq), out=sq) - penalty, axis=1)
+        cost = self.motion.landing_sq_distances(ends, mu_t, second)  # (K, M), in place:
+        np.sqrt(np.maximum(cost, 0.0, out=cost), out=cost)           # the distances, then
+        if risk is not None:                                          # + the risk penalty
+            cost += penalty
+        value = -cost.min(axis=1)
         if risk is not None:
             value = value - first[top]
         return int(top[int(np.argmax(value))]) if np.isfinite(value).any() else index
