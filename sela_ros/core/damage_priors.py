@@ -11,8 +11,9 @@ selection for data-efficient direct policy search", ICRA 2018), on SELA's generi
 :meth:`DamagePriors.select` picks, after every step, the prior that best explains what the
 robot has done so far: the intact map or one of the tables, by the likelihood of the
 observed generic rewards (Gaussian errors of :data:`RESIDUAL_SCALE`, what a gait chained
-from the last one differs from the same gait from a standing start) and of the observed
-falls. A table is used only while it explains the steps well in absolute terms too (mean
+from the last one differs from the same gait from a standing start, robust to a share
+:data:`OUTLIER_FRACTION` of steps off by :data:`OUTLIER_SCALE` times that) and of the
+observed falls. A table is used only while it explains the steps well in absolute terms too (median
 squared error below ``max_misfit``, in units of :data:`RESIDUAL_SCALE`): a damage nobody
 foresaw is best explained by the nearest table, which can still be wrong about most gaits,
 and then the intact map with SELA's usual learning does better (docs/archive.md, "Damage
@@ -42,8 +43,8 @@ P_FALL_IF_STANDS = 0.05
 #: how much wider their errors are: the likelihood is robust to them.
 OUTLIER_FRACTION = 0.1
 OUTLIER_SCALE = 5.0
-#: Mean squared error (units of RESIDUAL_SCALE) above which a table is not used (measured
-#: against 1.0, 1.5 and none: docs/archive.md).
+#: Median squared error per step (units of RESIDUAL_SCALE) above which a table is not used
+#: (measured against 0.8, 1.0 and no cap: docs/archive.md).
 DEFAULT_MAX_MISFIT = 0.6
 FORMAT_VERSION = 1
 
@@ -129,7 +130,7 @@ class DamagePriors:
             base_gr: ``(M, k)`` the archive's own generic rewards (the intact map).
             indices, observed: the gaits learnt and their generic rewards ``(N, k)``.
             fall_indices, fallen: every step's gait and whether it fell.
-            max_misfit: a table whose mean squared error (units of RESIDUAL_SCALE) over the
+            max_misfit: a table whose median squared error (units of RESIDUAL_SCALE) over the
                 steps is above this is not used.
         """
         indices = np.asarray(indices, dtype=int).reshape(-1)

@@ -113,7 +113,7 @@ class SELAConfig:
     # What a fall costs, in metres of the specialised reward: UCB takes cost x risk off each
     # gait's score (0: only the threshold keeps falls away).
     fall_risk_cost: float = fall_risk.DEFAULT_COST
-    # A damage prior (a table of the gaits on a foreseen damage) is used only while its mean
+    # A damage prior (a table of the gaits on a foreseen damage) is used only while its median
     # squared error over the steps seen is below this (units of the chaining error); 0: the
     # tables are never used.
     priors_max_misfit: float = damage_priors.DEFAULT_MAX_MISFIT

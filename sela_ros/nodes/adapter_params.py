@@ -31,7 +31,7 @@ PARAMETERS = (
          "(docs/archive.md); 'auto' = those shipped beside the archive if any, 'none' = the "
          'intact map only (the paper), or a path (.npz from `make priors`)',
          read_only=True),
-    Spec('priors.max.misfit', 0.6, "a damage prior is used only while its mean squared error "
+    Spec('priors.max.misfit', 0.6, "a damage prior is used only while its median squared error "
          'over the steps seen is below this (units of 0.1 m, 0.1 m, 0.25 rad); 0 = never',
          low=0.0, high=1e6, read_only=True),
     Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
