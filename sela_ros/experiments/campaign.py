@@ -29,7 +29,7 @@ import numpy as np
 
 from sela_ros.core.persistence import atomic_write_bytes
 from sela_ros.core.sela import SELAConfig
-from sela_ros.experiments import arguments, hexapod
+from sela_ros.experiments import arguments, hexapod, workers
 
 LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right', 'rear_right')
 GROUPS = {
@@ -142,7 +142,7 @@ def _load_archive(path):
 
 def _priors_names(archive_path, args, damage):
     """The damage priors a cell's SELA runs with (None: none), as results.json records."""
-    priors = hexapod.load_priors(args.priors, archive_path, _load_archive(archive_path),
+    priors = workers.load_priors(args.priors, archive_path, _load_archive(archive_path),
                                  damage, args.priors_leave_out_own)
     return None if priors is None else list(priors.names)
 

@@ -40,6 +40,7 @@ import numpy as np
 from sela_ros.core.sela import SE2Motion, SELAConfig
 from sela_ros.experiments import arguments
 from sela_ros.experiments.baselines import METHODS, Problem
+from sela_ros.experiments.workers import load_priors, worker_archive, worker_planner, worker_priors
 
 HEXAPOD_METHODS = ('sela', 'ite_uncertainty', 'ite_4dir', 'oracle')
 # Chosen by measurement (docs/hexapod_results.md): 0.5-1.0 m are alike, 0.4 m and below worse.
@@ -206,51 +207,6 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
     )
 
 
-# Per worker process: the archive and the oracle table, loaded once.
-_WORKER = {}
-
-
-def _worker_state(archive_path):
-    from sela_ros.core.archive import load_archive
-
-    if _WORKER.get('path') != archive_path:
-        _WORKER['path'] = archive_path
-        _WORKER['archive'] = load_archive(archive_path)
-    return _WORKER['archive']
-
-
-def load_priors(value, archive_path, archive, damage=None, leave_out_own=False):
-    """The damage priors of a run (None: the intact map only); ``leave_out_own`` drops
-    ``damage`` from them. Raises DamagePriorError."""
-    from sela_ros.core.damage_priors import resolve_priors
-
-    priors = resolve_priors(value, archive_path, archive.params)
-    if priors is not None and leave_out_own:
-        priors = priors.without(damage)
-    return priors
-
-
-def _worker_priors(value, archive_path, damage, leave_out_own):
-    key = (value, archive_path, damage, leave_out_own)
-    if _WORKER.get('priors_key') != key:
-        _WORKER['priors_key'] = key
-        _WORKER['priors'] = load_priors(value, archive_path, _worker_state(archive_path),
-                                        damage, leave_out_own)
-    return _WORKER['priors']
-
-
-def _worker_planner(map_path, inflation):
-    """``(grid, planner)`` for a map, built once per worker (its fields are kept too)."""
-    from sela_ros.core.maps import load_map_file
-    from sela_ros.core.planning import GridPlanner
-
-    if _WORKER.get('map') != (map_path, inflation):
-        grid = load_map_file(map_path)
-        _WORKER['map'] = (map_path, inflation)
-        _WORKER['planner'] = (grid, GridPlanner(grid, inflation=inflation))
-    return _WORKER['planner']
-
-
 def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
@@ -259,8 +215,8 @@ def run_method(job):
     from sela_ros.experiments.courses import CourseEnvironment
     from sim_bridge.experiment_env import HexapodEnvironment
 
-    archive = _worker_state(archive_path)
-    grid, planner = _worker_planner(map_path, inflation) if map_path else (None, None)
+    archive = worker_archive(archive_path)
+    grid, planner = worker_planner(map_path, inflation) if map_path else (None, None)
     settings = archive.simulator_settings
     env_seed, method_seed = seed_seq.spawn(2)
     start = time.perf_counter()
@@ -273,7 +229,7 @@ def run_method(job):
                                ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
                                alpha=alpha, fall_risk=fall_risk, planner=planner, via=via,
                                fall_kernel_sigma=fall_kernel_sigma, fall_cost=fall_cost,
-                               priors=_worker_priors(priors_value, archive_path, damage,
+                               priors=worker_priors(priors_value, archive_path, damage,
                                                      leave_out_own), horizon=horizon)
         result = METHODS[name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()

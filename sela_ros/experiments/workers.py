@@ -1,0 +1,51 @@
+"""What each experiment worker process loads once and keeps: the archive, the damage
+priors of a run, and the map with its planner (the hexapod experiment's jobs run many
+replicates per process)."""
+from __future__ import annotations
+
+
+def load_priors(value, archive_path, archive, damage=None, leave_out_own=False):
+    """The damage priors of a run (None: the intact map only); ``leave_out_own`` drops
+    ``damage`` from them. Raises DamagePriorError."""
+    from sela_ros.core.damage_priors import resolve_priors
+
+    priors = resolve_priors(value, archive_path, archive.params)
+    if priors is not None and leave_out_own:
+        priors = priors.without(damage)
+    return priors
+
+
+# Per worker process: the archive, the damage priors and the map, loaded once.
+_WORKER = {}
+
+
+def worker_archive(archive_path):
+    """The archive at ``archive_path``, loaded once per worker."""
+    from sela_ros.core.archive import load_archive
+
+    if _WORKER.get('path') != archive_path:
+        _WORKER['path'] = archive_path
+        _WORKER['archive'] = load_archive(archive_path)
+    return _WORKER['archive']
+
+
+def worker_priors(value, archive_path, damage, leave_out_own):
+    """:func:`load_priors` for a run, once per worker and setting."""
+    key = (value, archive_path, damage, leave_out_own)
+    if _WORKER.get('priors_key') != key:
+        _WORKER['priors_key'] = key
+        _WORKER['priors'] = load_priors(value, archive_path, worker_archive(archive_path),
+                                        damage, leave_out_own)
+    return _WORKER['priors']
+
+
+def worker_planner(map_path, inflation):
+    """``(grid, planner)`` for a map, built once per worker (its fields are kept too)."""
+    from sela_ros.core.maps import load_map_file
+    from sela_ros.core.planning import GridPlanner
+
+    if _WORKER.get('map') != (map_path, inflation):
+        grid = load_map_file(map_path)
+        _WORKER['map'] = (map_path, inflation)
+        _WORKER['planner'] = (grid, GridPlanner(grid, inflation=inflation))
+    return _WORKER['planner']
