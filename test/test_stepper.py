@@ -295,7 +295,7 @@ def test_each_mission_is_numbered_and_its_result_names_it_also_after_a_restart()
     restarted.stepper.restore(snapshot, 0.0)
     assert restarted.stepper.mission_id == 2
     restarted(PoseObserved((0.25, 0.0, 0.0), stamp=0.0))
-    assert restarted(GoalReceived((3.0, 0.0)))[1].values['mission'] == '3'
+    assert of(restarted(GoalReceived((3.0, 0.0))), PublishStatus)[0].values['mission'] == '3'
 
 
 def test_outcomes_of_other_commands_are_ignored():
@@ -500,3 +500,23 @@ def test_the_prior_in_use_is_reported_when_a_damage_prior_takes_over():
     only(d.plan(request), SendGait)
     said = [r.message for r in of(d.log, Report)]
     assert any(m.startswith('prior: remove:front_left (was intact)') for m in said), said
+
+
+def test_a_result_and_a_goal_taken_are_announced_after_their_saves():
+    """Acknowledged means durable: the driver releases a status once the saves before it
+    are on disk, so a status must come after the save of what it announces (a client that
+    hears 'goal reached' and stops the adapter at once must find the mission done)."""
+    d = Driver()
+    d(PoseObserved((0.0, 0.0, 0.0), stamp=0.0))
+    out = d(GoalReceived((0.3, 0.0)))
+    kinds = [type(c) for c in out]
+    assert kinds.index(SaveState) < kinds.index(PublishStatus), kinds
+    request = of(out, RequestPlan)[0]
+    gait = only(d.plan(request), SendGait)
+    out = d.outcome(gait, gr=(0.3, 0.0, 0.0)) + d(VerdictReceived(gait.behavior_id, False))
+    finals = [i for i, c in enumerate(out)
+              if isinstance(c, PublishStatus) and 'success' in c.values]
+    assert finals, out
+    saves = [i for i, c in enumerate(out) if isinstance(c, SaveState)
+             and c.snapshot['mission']['state'] == 'done']
+    assert saves and saves[0] < finals[0], out

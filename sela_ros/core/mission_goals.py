@@ -29,8 +29,9 @@ def take_goals(stepper, goals):
     stepper.mission_id += 1
     if stepper.state in (State.IDLE, State.DONE):
         stepper.state = State.READY
+    # The goal is announced as taken once its save is on disk (acknowledged means durable).
     out = [Report(Level.OK, f'new goal ({goal[0]:.2f}, {goal[1]:.2f})'),
-           goal_status(stepper, 'new goal'), SaveState(stepper.snapshot())]
+           SaveState(stepper.snapshot()), goal_status(stepper, 'new goal')]
     if stepper.hold:
         out.append(Report(Level.ERROR, stepper.hold))
     return out
@@ -47,5 +48,5 @@ def next_goal(stepper, pose):
     message = (f'goal {stepper.goal_index - 1}/{stepper.goal_count} reached after {steps} steps')
     return [Report(Level.OK, f'{message}, pose ({pose[0]:.2f}, {pose[1]:.2f}); next goal '
                    f'({stepper.goal[0]:.2f}, {stepper.goal[1]:.2f})'),
-            goal_status(stepper, message, reached=reached, reached_steps=steps),
-            SaveState(stepper.snapshot())]
+            SaveState(stepper.snapshot()),
+            goal_status(stepper, message, reached=reached, reached_steps=steps)]

@@ -367,10 +367,13 @@ class MissionStepper:
         self.result = success
         message = ('goal reached' if success
                    else f'goal not reached in {self.config.max_steps} steps')
+        # Acknowledged means durable: the result is announced once its save is on disk (a
+        # client that heard it and stops the adapter at once finds the mission done after a
+        # restart, not half done).
         return [Report(Level.OK, f'{message} after {self.steps} steps, pose '
                        f'({pose[0]:.2f}, {pose[1]:.2f})'),
-                PublishStatus(Level.OK if success else Level.ERROR, message, self.status()),
-                self._save()]
+                self._save(),
+                PublishStatus(Level.OK if success else Level.ERROR, message, self.status())]
 
     # --- status and persistence ----------------------------------------------------------
 
