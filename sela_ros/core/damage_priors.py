@@ -144,10 +144,13 @@ class DamagePriors:
         # is the tumble's. Falls are judged by the fall term instead.
         keep = ~np.isin(indices, fall_indices[fallen])
         scale = RESIDUAL_SCALE[:k] if k <= RESIDUAL_SCALE.size else np.ones(k) * 0.1
-        tables = np.concatenate([np.asarray(base_gr, dtype=float)[None, :, :k],
-                                 self.generic_reward[:, :, :k]])
-        falls = np.concatenate([np.zeros((1, self.num_candidates), bool), self.fallen])
-        r = (observed[keep][None] - tables[:, indices[keep]]) / scale
+        # Only the gaits seen are read: (1 + K, steps) slices, never whole tables.
+        seen = indices[keep]
+        predicted = np.concatenate([np.asarray(base_gr, dtype=float)[None, seen, :k],
+                                    self.generic_reward[:, seen, :k]])
+        falls = np.concatenate([np.zeros((1, fall_indices.size), bool),
+                                self.fallen[:, fall_indices]])
+        r = (observed[keep][None] - predicted) / scale
         q = np.sum(r * r, axis=2)  # (tables, steps)
         # Robust: a step is explained by the table up to the chaining error, or is one of a
         # few surprises (a gait chained from an odd posture) that count for little.
@@ -155,8 +158,8 @@ class DamagePriors:
         loglik = np.logaddexp(np.log1p(-OUTLIER_FRACTION) - 0.5 * q,
                               np.log(OUTLIER_FRACTION) - 0.5 * k * np.log(wide)
                               - 0.5 * q / wide).sum(axis=1)
-        misfit = np.median(q, axis=1) / k if q.shape[1] else np.zeros(len(tables))
-        p = np.where(falls[:, fall_indices], P_FALL_IF_FALLS, P_FALL_IF_STANDS)
+        misfit = np.median(q, axis=1) / k if q.shape[1] else np.zeros(len(predicted))
+        p = np.where(falls, P_FALL_IF_FALLS, P_FALL_IF_STANDS)
         loglik += np.sum(np.where(fallen, np.log(p), np.log1p(-p)), axis=1)
         best = int(np.argmax(loglik))
         if best == 0 or misfit[best] > max_misfit:

@@ -140,10 +140,17 @@ def _load_archive(path):
     return load_archive(path)
 
 
+@functools.lru_cache(maxsize=4)
+def _load_priors(value, archive_path):
+    return workers.load_priors(value, archive_path, _load_archive(archive_path))
+
+
 def _priors_names(archive_path, args, damage):
-    """The damage priors a cell's SELA runs with (None: none), as results.json records."""
-    priors = workers.load_priors(args.priors, archive_path, _load_archive(archive_path),
-                                 damage, args.priors_leave_out_own)
+    """The damage priors a cell's SELA runs with (None: none), as results.json records
+    (the file is read once per archive, not once per cell)."""
+    priors = _load_priors(args.priors, archive_path)
+    if priors is not None and args.priors_leave_out_own:
+        priors = priors.without(damage)
     return None if priors is None else list(priors.names)
 
 
