@@ -33,12 +33,12 @@ def _new_stepper(node, archive):
                           params.stepper_config(node.values))
 
 
-def use_archive(node, path):
+def use_archive(node, path, archive=None):
     """Load the archive at ``path`` ('': the shipped one; ``8d``, ``2d``: the shipped ones by
-    name) and a stepper over it; a mission in progress goes on with the new archive, from
-    where the robot is."""
+    name; ``archive``: already loaded from there) and a stepper over it; a mission in
+    progress goes on with the new archive, from where the robot is."""
     path = resolve_archive_path(path)
-    archive, old = load_archive(path), node.stepper
+    archive, old = archive if archive is not None else load_archive(path), node.stepper
     node.archive, node.archive_path = archive, path
     node.priors = _priors(node, archive, path)
     node.stepper = _new_stepper(node, archive)
@@ -57,27 +57,29 @@ def use_archive(node, path):
 def archive_change(node, value):
     """Why ``archive`` cannot become ``value`` now, or None (then it is in use).
 
-    The same file again keeps everything (nothing to load). Another file would make what
-    was learned meaningless (its indices are the old archive's gaits): refused while
-    anything is learned, until ``~/clear``.
+    The same file again keeps everything (nothing to load). A file that cannot be loaded is
+    refused with its problem, whatever the adapter is doing. Another file would make what
+    was learned meaningless (its indices are the old archive's gaits): refused mid-step,
+    and while anything is learned, until ``~/clear``.
     """
     path = resolve_archive_path(value)
     if node.archive is not None and same_file(path, node.archive_path):
         node.get_logger().info(f'archive {path} is the one in use: kept, with what was '
                                'learned on it')
         return None
+    try:  # first: a file that cannot be used is refused for what is wrong with it
+        archive = load_archive(path)
+    except ArchiveError as exc:
+        return str(exc)
     if node.stepper is not None and node.stepper.state not in (
             io.State.IDLE, io.State.DONE, io.State.READY):
-        return 'archive cannot change mid-step'
+        return f'archive {path} refused: it cannot change mid-step; set it again between steps'
     learned = 0 if node.stepper is None else len(node.stepper.sela.observations[0])
     if learned:
         return (f'archive {path} refused: {learned} observation(s) were learned on '
                 f'{node.archive_path} and would be lost; call '
                 f'{node.get_name()}/clear first, then set the archive again')
-    try:
-        use_archive(node, path)
-    except ArchiveError as exc:
-        return str(exc)
+    use_archive(node, path, archive)
     return None
 
 

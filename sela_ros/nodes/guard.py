@@ -96,15 +96,18 @@ guard_parameters = _decorator(_refused, 'Decorate an on-set-parameters callback 
                               '``(self, params)``.')
 
 
-def spin_guarded(executor, node):
+def spin_guarded(executor, node, stop=None, period=None):
     """``executor.spin()``, except that an exception a callback raises is reported and the
     spin goes on: the outer guard, for what no decorator covers (a lambda, a done callback,
-    rclpy's own callbacks such as the sim-time ``/clock`` subscription)."""
+    rclpy's own callbacks such as the sim-time ``/clock`` subscription).
+
+    With ``stop`` (a callable), the spin also ends once ``stop()`` is true, looked at after
+    every callback and at least every ``period`` seconds."""
     from rclpy.executors import ExternalShutdownException, ShutdownException
 
-    while executor.context.ok():
+    while executor.context.ok() and not (stop is not None and stop()):
         try:
-            executor.spin_once()
+            executor.spin_once(timeout_sec=period)
         except (ExternalShutdownException, ShutdownException):
             raise
         except Exception as exc:  # noqa: BLE001 - reported; the node keeps running

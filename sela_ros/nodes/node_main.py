@@ -1,10 +1,12 @@
 """The one ``main()`` of every sela_ros node (Jazzy style: init, spin, clean shutdown)."""
 import signal
 import sys
+import threading
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
+from rclpy.signals import SignalHandlerOptions
 
 from sela_ros.nodes.guard import spin_guarded
 from sela_ros.nodes.params import StartupParameterError, params_file_problems
@@ -12,13 +14,25 @@ from sela_ros.nodes.params import StartupParameterError, params_file_problems
 #: Exit status of a node that refuses to start on a bad configuration (as argparse's).
 EXIT_BAD_CONFIGURATION = 2
 
+#: Longest wait (s) of the spin between two looks at a Ctrl-C: how long stopping can take.
+SPIN_PERIOD = 0.1
 
-def _first_interrupt_only(signum, frame):
-    """Ctrl-C in a terminal under `ros2 launch` reaches every node twice (the terminal's
-    SIGINT to the process group, then launch's own): the second must not interrupt the
-    clean shutdown with a KeyboardInterrupt traceback. SIGTERM still ends a stuck node."""
+_interrupted = threading.Event()
+
+
+def _on_sigint(signum, frame):
+    """Ctrl-C asks the spin to end at its next wake-up; the node then shuts down cleanly.
+
+    Nothing is raised: a KeyboardInterrupt lands wherever the interpreter happens to be
+    (inside rclpy's wait, its clean-up, a callback), and under `ros2 launch` Ctrl-C comes
+    twice (the terminal's SIGINT to the process group, then launch's own), so a raised one
+    could cut the clean-up short or leave it stuck. Later Ctrl-Cs are ignored from here on
+    (not merely repeated: while the interpreter exits, a Python handler reverts to the
+    default one, which would kill the process).
+    SIGTERM keeps rclpy's handler (the context is shut down: the spin ends too).
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    raise KeyboardInterrupt
+    _interrupted.set()
 
 
 def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
@@ -36,23 +50,14 @@ def run_node(node_class, args=None, executor_factory=SingleThreadedExecutor):
         print(f'[ERROR] [{node_class.__name__}]: not started: fix the parameters file',
               file=sys.stderr)
         sys.exit(EXIT_BAD_CONFIGURATION)
-    # Installed before rclpy.init so that rclpy's handler (which wakes the executor) chains
-    # to it: the first Ctrl-C ends the spin, any later one is ignored at once.
-    signal.signal(signal.SIGINT, _first_interrupt_only)
+    # Ctrl-C is ours (see _on_sigint); rclpy handles SIGTERM only.
+    signal.signal(signal.SIGINT, _on_sigint)
     try:
-        rclpy.init(args=args)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.SIGTERM)
     except rclpy_implementation.RCLError as exc:
         print(f'[ERROR] [{node_class.__name__}]: not started: {exc}', file=sys.stderr)
         sys.exit(EXIT_BAD_CONFIGURATION)
-    try:
-        status = _spin(node_class, executor_factory)
-    except KeyboardInterrupt:
-        # The one Ctrl-C our handler turns into KeyboardInterrupt can land after rclpy's own
-        # handler already ended the spin, inside the clean-up (seen under load): the clean-up
-        # was cut short, so finish it here; later Ctrl-Cs are ignored already.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        rclpy.try_shutdown()
-        status = 0
+    status = _spin(node_class, executor_factory)
     if status:
         sys.exit(status)
 
@@ -65,16 +70,15 @@ def _spin(node_class, executor_factory):
         node = node_class()
         executor = executor_factory()
         executor.add_node(node)
-        spin_guarded(executor, node)
+        spin_guarded(executor, node, stop=_interrupted.is_set, period=SPIN_PERIOD)
     except StartupParameterError as exc:
         # One line, as for a refused `ros2 param set`: the same check said it.
         name = exc.node_name or node_class.__name__
         print(f'[ERROR] [{name}]: {exc} (not started)', file=sys.stderr)
         status = EXIT_BAD_CONFIGURATION
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:
         pass
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # also after an external shutdown
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
