@@ -361,6 +361,39 @@ def test_a_restored_mission_goes_on_only_if_the_robot_is_where_it_was(where, res
     assert d.stepper.logic.adaptations == 2
 
 
+def test_the_same_goal_sent_before_a_restored_mission_is_checked_is_a_new_mission():
+    """After a relaunch the client sends its goal again, before the first odometry has said
+    whether the restored mission to that goal can go on. 'Already in progress' would be a
+    promise the check may break (the robot elsewhere: the mission dropped, and the client,
+    told its goal was taken, waits for ever): the goal is taken as a new mission instead."""
+    before, gait, snapshot = _saved_mid_mission(at_verdict=True)
+    d = Driver(adapt_on_start=True)
+    d.stepper.restore(snapshot, 0.0)
+    out = d(GoalReceived((1.0, 0.0)))  # the mission's own goal
+    assert only(out, PublishStatus).message == 'new goal'
+    out = d(PoseObserved((1.0, 1.0, 0.0), stamp=0.0))  # far from where the state file says
+    assert not any('dropped' in r.message for r in of(out, Report))
+    request = only(out, RequestPlan)
+    assert request.step == 1 and np.allclose(request.start, (1.0, 1.0, 0.0))
+    assert len(d.stepper.sela.observations[0]) == 2  # what was learned stays
+
+
+@pytest.mark.parametrize('goal', [(1.0, 0.0), (0.0, 1.5)])
+def test_a_goal_sent_while_a_restored_gait_is_in_flight_survives_the_gait_never_answering(goal):
+    before, gait, snapshot = _saved_mid_mission()
+    d = Driver(outcome_timeout=5.0)
+    d.stepper.restore(snapshot, 0.0)
+    assert only(d(GoalReceived(goal)), PublishStatus).message == 'new goal'
+    assert d.state is State.EXECUTING  # the gait in flight is still awaited
+    d(PoseObserved((2.0, 2.0, 0.0)))
+    out = d(Tick(), dt=6.0)  # it never answers, and the robot is elsewhere
+    assert not any('dropped' in r.message for r in of(out, Report))
+    assert 'going on with the new goal from here' in of(out, Report)[0].message
+    request = only(out, RequestPlan)
+    assert request.step == 1 and np.allclose(request.start, (2.0, 2.0, 0.0))
+    assert np.allclose(request.goal, goal)
+
+
 def test_a_gait_in_flight_at_restart_waits_for_its_outcome_or_resends_it_from_there():
     before, gait, snapshot = _saved_mid_mission()
     d = Driver(adapt_on_start=True, outcome_timeout=5.0)

@@ -14,15 +14,20 @@ def take_goals(stepper, goals):
     """The mission is now ``goals`` in order (one goal: a plain goal)."""
     goal = np.asarray(goals[0], dtype=float).reshape(-1)[:2]
     rest = [np.asarray(g, dtype=float).reshape(-1)[:2] for g in goals[1:]]
+    # A restored mission not yet checked against odometry may still be dropped: the same
+    # goal then starts afresh from where the robot is, so that 'taken' stays true (a gait
+    # in flight at the restart is still awaited; if it never answers, the new mission goes
+    # on without it: MissionStepper._on_tick).
+    unchecked = stepper.resume is not None and stepper.state is not State.EXECUTING
     if (stepper.goal is not None and np.array_equal(goal, stepper.goal)
-            and stepper.state not in (State.IDLE, State.DONE)):
+            and stepper.state not in (State.IDLE, State.DONE) and stepper.resume is None):
         stepper.goals_left, stepper.goal_count = rest, stepper.goal_index + len(rest)
         return [goal_status(stepper, 'goal already in progress')]  # it goes on
     stepper.goals_left, stepper.goal_index, stepper.goal_count = rest, 1, len(goals)
     stepper.sela.set_goal(goal)
     stepper.goal = goal
     stepper._plan = None
-    if stepper.resume is not None and stepper.state is not State.EXECUTING:
+    if unchecked:
         stepper.resume = stepper.pose = None  # a new mission, from where the robot is
     stepper.steps = 0
     stepper.result = None

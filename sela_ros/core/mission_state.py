@@ -55,7 +55,7 @@ def restore_mission(stepper, snapshot, now):
     stepper.logic.last = None if last is None else (int(last[0]), np.array(last[1], float))
     stepper.next_id = int(m['next_id'])
     stepper.failed_steps = int(m.get('failed_steps', 0))
-    stepper.mission_id = int(m.get('mission_id', 0))
+    stepper.mission_id = stepper.restored_mission = int(m.get('mission_id', 0))
     state = State(m['state'])
     if m['goal'] is None or state in (State.IDLE, State.DONE):
         return []
@@ -106,6 +106,18 @@ def drop_mission(stepper, pose, saved):
     stepper.state = State.IDLE
     stepper.reset_needed = False
     return [Report(Level.ERROR, message), SaveState(mission_snapshot(stepper))]
+
+
+def abandon_restored_gait(stepper, pose, saved):
+    """The gait in flight at a restart never answered and the robot is elsewhere, but a goal
+    came since: that mission goes on from where the robot is, without the gait."""
+    behavior_id = stepper.pending.behavior_id
+    stepper.resume = stepper.pending = stepper.pose = None
+    stepper.state = State.READY
+    stepper.steps = max(stepper.steps - 1, 0)  # the step never happened
+    return [Report(Level.WARN, f'command {behavior_id}, in flight at the restart, never '
+                   f'answered and the robot is {planar_distance(pose, saved):.2f} m from '
+                   'where it was sent: going on with the new goal from here')]
 
 
 def check_resume(stepper, pose):

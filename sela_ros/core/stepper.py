@@ -20,6 +20,7 @@ from sela_ros.core.geometry import planar_distance
 from sela_ros.core.learning import MissionLogic
 from sela_ros.core.mission_goals import next_goal, take_goals
 from sela_ros.core.mission_state import (
+    abandon_restored_gait,
     check_resume,
     drop_mission,
     mission_snapshot,
@@ -74,6 +75,7 @@ class MissionStepper:
         self.reset_needed = False
         self.adapt_after_outcome = False
         self.resume = None  # a restored mission waiting to see where the robot is
+        self.restored_mission = None  # the mission id the state file held
         self._plan = None  # AskedPlan
         self._verdicts = {}  # behaviour id -> verdict heard before the outcome
         self.last_id = None  # id of the latest outcome processed
@@ -280,6 +282,9 @@ class MissionStepper:
         if self.state is State.EXECUTING and now > p.deadline:
             if self.resume is not None and self.odom is not None and planar_distance(
                     self.odom, p.pose) > self.config.pose_tolerance:
+                if self.mission_id != self.restored_mission:  # a goal came since
+                    return abandon_restored_gait(self, self.odom, p.pose) + \
+                        self._start_step(now)
                 return drop_mission(self, self.odom, p.pose)
             p.deadline = now + self.config.outcome_timeout
             return [Report(Level.ERROR, f'no outcome for command {p.behavior_id} within '
