@@ -184,8 +184,9 @@ def test_every_service_answers(graph):
         behavior_pub.publish(conv.behavior_to_msg(forward, 777_000 + k))
     client.spin_until(lambda: mine(), 30, 'the first gait')
     reset = client.call(reset_cli, Trigger.Request())
+    # 'queued': answered while gaits were still to run (how many outcomes this client has
+    # heard by now depends on scheduling, so it is not asserted).
     assert reset.success and 'queued' in reset.message, reset.message
-    assert len(mine()) < 6  # answered while gaits were still to run
     client.spin_until(lambda: len(mine()) == 6, 60, 'the six outcomes')
     client.spin_until(lambda: poses and np.linalg.norm(poses[-1][:2]) < 0.01, 10,
                       'the robot back at the start after the queued reset')

@@ -154,3 +154,19 @@ def test_ctrl_c_under_a_launch_like_process_group_exits_cleanly(ros_env, client,
         assert status == 0, (name, status, err[-2000:])
         assert 'Traceback' not in err and 'KeyboardInterrupt' not in err, (name, err)
         assert out == '', (name, out)  # nothing on stdout: no banner (logs go to stderr)
+
+
+def test_sigterm_ends_a_node_cleanly(ros_env, client):
+    """`ros2 launch` escalates to SIGTERM when a node outlives its SIGINT: status 0 too."""
+    proc = subprocess.Popen([str(executable('planner'))], env=ros_env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        cli = client.node.create_client(GetParameters, '/planner/get_parameters')
+        client.call(cli, GetParameters.Request(names=['use_sim_time']), timeout=90)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=30)
+    assert proc.returncode == 0 and 'Traceback' not in err, (proc.returncode, err[-2000:])
