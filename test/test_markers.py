@@ -58,9 +58,12 @@ def test_mcap_holds_tf_description_and_markers_and_draws_them(tmp_path):
         description_pub = sender.node.create_publisher(String, '/robot_description',
                                                        LATCHED_QOS)
         markers_pub = sender.node.create_publisher(MarkerArray, '/sela/markers', 10)
+        # Matched on both sides: the recorder sees the publishers and each publisher its
+        # subscription (a volatile message sent before that is lost: seen under load).
+        pubs = (tf_pub, description_pub, markers_pub)
         recorder_client.spin_until(
-            lambda: all(recorder_client.node.count_publishers(t) for t in topics), 30,
-            'the publishers')
+            lambda: all(recorder_client.node.count_publishers(t) for t in topics)
+            and all(p.get_subscription_count() for p in pubs), 30, 'the publishers')
         description_pub.publish(String(data='<robot name="sela_hexapod"/>'))
         steps = 3
         for step in range(steps):
