@@ -79,6 +79,9 @@ def _spin(node_class, executor_factory):
     except ExternalShutdownException:
         pass
     finally:
+        # Also after a SIGTERM or an external shutdown: a Ctrl-C while the interpreter exits
+        # would otherwise meet the default handler and kill the process.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
