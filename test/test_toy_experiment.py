@@ -55,3 +55,17 @@ def test_out_is_a_file(tmp_path):
     with pytest.raises(SystemExit) as exc:
         main(['toy', '--replicates', '1', '--out', str(f)])
     assert exc.value.code == 2
+
+
+def test_an_unexpected_error_of_a_scenario_comes_through_as_itself(tmp_path, monkeypatch):
+    """Only the scenario's own argument errors become exit 2; anything else is raised as
+    it is (before, the toy scenario's lack of ``CellMismatch`` turned it into a TypeError
+    of the except clause)."""
+    from sela_ros.experiments import toy
+
+    def broken(args, progress):
+        raise RuntimeError('the simulator broke')
+
+    monkeypatch.setattr(toy, 'run', broken)
+    with pytest.raises(RuntimeError, match='the simulator broke'):
+        main(['toy', '--replicates', '1', '--quiet', '--out', str(tmp_path / 'out')])

@@ -117,6 +117,10 @@ class CellMismatch(ValueError):
     """A cell already in ``--out`` was run with other parameters than those asked."""
 
 
+#: What ``sela-experiment`` reports as a usage error (exit 2) instead of a traceback.
+ARGUMENT_ERRORS = (CellMismatch,)
+
+
 def _expected_parameters(archive_path, args) -> dict:
     from sim_bridge.experiment_env import archive_checksum
 

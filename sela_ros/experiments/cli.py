@@ -95,7 +95,7 @@ def main(argv=None) -> int:
               disable=args.quiet) as bar:
         try:
             doc = module.run(args, progress=lambda: bar.update(1))
-        except (getattr(module, 'CellMismatch', ()), DamagePriorError) as err:
+        except (DamagePriorError, *getattr(module, 'ARGUMENT_ERRORS', ())) as err:
             bar.close()
             parser.error(str(err))
     results_path = os.path.join(args.out, 'results.json')
