@@ -15,7 +15,7 @@ from sela_ros.core.damage_priors import (
     resolve_priors,
 )
 from sela_ros.core.gp import CandidateSetGP
-from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
+from sela_ros.core.sela import HEDGED, SELA, SE2Motion, SELAConfig
 
 M = 300
 
@@ -95,7 +95,8 @@ def test_sela_walks_on_the_table_that_fits_and_keeps_off_its_falls():
     sela = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config,
                 priors=priors)
     plain = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config)
-    assert sela.ask(np.zeros(3)).prior == 'intact'
+    assert sela.ask(np.zeros(3), map_trusted=True).prior == 'intact'
+    assert sela.ask(np.zeros(3)).prior == HEDGED  # the first step of an adaptation
     for model in (sela, plain):
         for i in (200, 201, 202):
             model.tell_fall(i, False)
@@ -120,6 +121,33 @@ def test_sela_walks_on_the_table_that_fits_and_keeps_off_its_falls():
     again = SELA(candidates, intact, SE2Motion(), config=config, priors=priors)
     again.load_state_dict(state)
     assert again.select_prior().name == 'remove:front_left'
+
+
+def test_the_first_step_is_hedged_over_the_intact_map_and_the_tables():
+    """Before any step shows the damage, the first gait is the one that lands nearest the
+    waypoint on average over every prior, not the intact map's best, which the damaged
+    robots cannot do; a gait a table sees falling counts that against it."""
+    candidates, intact, priors, _ = world()
+    config = SELAConfig(gp_kernel_sigma=0.3, acquisition_ucb_alpha=0.0, fall_risk_cost=0.0)
+    sela = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config,
+                priors=priors)
+    waypoint = np.array([0.6, 0.0])
+    tables = [intact, *priors.generic_reward]
+    mean = np.mean([np.hypot(t[:, 0] - 0.6, t[:, 1]) for t in tables], axis=0)
+    trusted = sela.ask(np.zeros(3), waypoint=waypoint, map_trusted=True)
+    assert trusted.index == np.argmin(np.hypot(intact[:, 0] - 0.6, intact[:, 1]))
+    hedged = sela.ask(np.zeros(3), waypoint=waypoint)
+    assert hedged.prior == HEDGED and hedged.index != trusted.index
+    # A gait one table of the three priors sees falling has a risk of 1/3, above the 0.3
+    # accepted: the nearest on average is one of those, and it is not taken.
+    falls = priors.fallen.sum(axis=0) > 0
+    assert falls[np.argmin(mean)]
+    assert hedged.index == np.argmin(np.where(falls, np.inf, mean))
+    assert np.isclose(hedged.reward, -mean[hedged.index])
+    # Once a step is learnt, the choice is the usual one, on the prior that fits.
+    sela.tell_fall(hedged.index, False)
+    sela.tell(hedged.index, priors.generic_reward[0][hedged.index])
+    assert sela.ask(np.zeros(3), waypoint=waypoint).prior != HEDGED
 
 
 def test_sela_refuses_tables_for_another_archive():

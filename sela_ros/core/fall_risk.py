@@ -62,6 +62,10 @@ SAFE_PSEUDO_STEPS = 3
 #: ``beta ~ N(mean, sd)``, ``beta >= 0`` (per standard deviation of the feature).
 THETA_PRIOR = (-3.0, 1.5)
 BETA_PRIOR = (1.5, 1.0)
+#: How many gaits a damage prior's table counts for in the logistic model's prior on that
+#: damage (:meth:`FallRisk.table_support`): its falls are from a standing start, not chained
+#: as on the robot, so they set where the model starts, not how sure it is (docs/archive.md).
+TABLE_EVIDENCE = 600
 _THETA_GRID = np.linspace(-9.0, 5.0, 57)
 _BETA_GRID = np.linspace(0.0, 5.0, 41)
 _Z_GRID = np.linspace(-4.0, 4.0, 161)
@@ -103,8 +107,8 @@ class FallRisk:
                               _Z_GRID[0], _Z_GRID[-1])
             theta, beta = np.meshgrid(_THETA_GRID, _BETA_GRID, indexing='ij')
             self._theta, self._beta = theta.ravel(), beta.ravel()
-            self._log_prior = (-0.5 * ((self._theta - THETA_PRIOR[0]) / THETA_PRIOR[1]) ** 2
-                               - 0.5 * ((self._beta - BETA_PRIOR[0]) / BETA_PRIOR[1]) ** 2)
+            self._log_prior = _log_support_prior(self._theta, self._beta,
+                                                 (*THETA_PRIOR, *BETA_PRIOR))
         self.reset()
 
     def reset(self) -> None:
@@ -115,19 +119,18 @@ class FallRisk:
         self._gp = CandidateSetGP(candidates, np.column_stack([prior, np.zeros_like(prior)]),
                                   sigma=sigma, variance=variance, noise=noise)
         self.falls = 0
-        self._untried = None  # cache of untried_risk(), invalid after each tell
+        self._untried = {}  # untried_risk() per support prior, emptied by each tell
         if self._z is not None:
-            self._log_post = self._log_prior.copy()
+            self._log_lik = np.zeros_like(self._theta)  # of the steps seen, on the grid
 
     def tell(self, index: int, fallen: bool) -> None:
         """Learn whether gait ``index`` ended with the robot fallen."""
         self._gp.add_sample(index, [1.0 if fallen else 0.0, 1.0])
         self.falls += bool(fallen)
-        self._untried = None
+        self._untried = {}
         if self._z is not None:
-            logit = self._theta - self._beta * self._z[int(index)]
-            # log s(l) = -log(1 + e^-l); log(1 - s(l)) = -log(1 + e^l)
-            self._log_post -= np.logaddexp(0.0, -logit if fallen else logit)
+            self._log_lik += _log_likelihood(self._theta, self._beta, self._z[int(index)],
+                                             fallen)
 
     @property
     def support_model(self):
@@ -137,39 +140,76 @@ class FallRisk:
         w = self._weights()
         return float(w @ self._theta), float(w @ self._beta)
 
-    def _weights(self):
-        w = np.exp(self._log_post - self._log_post.max())
+    def _weights(self, support=None):
+        log_post = self._log_lik + (self._log_prior if support is None
+                                    else _log_support_prior(self._theta, self._beta, support))
+        w = np.exp(log_post - log_post.max())
         return w / w.sum()
 
-    def untried_risk(self) -> np.ndarray:
+    def table_support(self, fallen) -> tuple | None:
+        """The logistic model's prior on a foreseen damage, from its table's falls.
+
+        ``fallen``: ``(M,)`` which gaits fall from a standing start on that damage (a damage
+        prior's table). Returns ``(theta mean, theta sd, beta mean, beta sd)``: the means are
+        the posterior of :data:`THETA_PRIOR` and :data:`BETA_PRIOR` given the table's falls,
+        weighed as :data:`TABLE_EVIDENCE` gaits (a table whose gaits never fall says that
+        this damage rarely tips the robot over, whatever the support); the spreads stay the
+        generic prior's, so the robot's own steps move it as fast as they move that one.
+        None without a stability feature."""
+        if self._z is None:
+            return None
+        fallen = np.asarray(fallen, dtype=bool).reshape(-1)
+        if fallen.shape != self._z.shape:
+            raise ValueError(f'fallen must have shape {self._z.shape}, got {fallen.shape}')
+        # The gaits binned on the grid of z: one likelihood term per bin, not per gait.
+        step = _Z_GRID[1] - _Z_GRID[0]
+        bins = np.rint((self._z - _Z_GRID[0]) / step).astype(int)  # z is within the grid
+        weight = TABLE_EVIDENCE / fallen.size
+        log_post = self._log_prior.copy()
+        for flag in (True, False):
+            counts = np.bincount(bins[fallen == flag], minlength=_Z_GRID.size) * weight
+            used = np.flatnonzero(counts)
+            logit = self._theta[:, None] - self._beta[:, None] * _Z_GRID[None, used]
+            log_post -= np.logaddexp(0.0, -logit if flag else logit) @ counts[used]
+        w = np.exp(log_post - log_post.max())
+        w /= w.sum()
+        return (float(w @ self._theta), THETA_PRIOR[1], float(w @ self._beta), BETA_PRIOR[1])
+
+    def untried_risk(self, support=None) -> np.ndarray:
         """``(M,)`` risk of each gait before anything near it was observed: the robot's fall
         rate so far, or, with a stability feature, the logistic model's posterior predictive
-        probability for the gait's stability."""
-        if self._untried is None:
+        probability for the gait's stability.
+
+        ``support``: the logistic model's prior for a foreseen damage
+        (:meth:`table_support`) in place of :data:`THETA_PRIOR` and :data:`BETA_PRIOR`; the
+        robot's own steps update it all the same."""
+        key = None if support is None or self._z is None else tuple(map(float, support))
+        if key not in self._untried:
             if self._z is None:
-                self._untried = np.full(self._args[0].shape[0], self.base_rate)
+                self._untried[key] = np.full(self._args[0].shape[0], self.base_rate)
             else:
-                w = self._weights()
+                w = self._weights(key)
                 keep = w > 1e-9 * w.max()
                 p = 1.0 / (1.0 + np.exp(-(self._theta[keep, None]
                                           - self._beta[keep, None] * _Z_GRID[None, :])))
-                self._untried = np.interp(self._z, _Z_GRID, w[keep] @ p / w[keep].sum())
-        return self._untried
+                self._untried[key] = np.interp(self._z, _Z_GRID, w[keep] @ p / w[keep].sum())
+        return self._untried[key]
 
     @property
     def base_rate(self) -> float:
         """The robot's fall rate so far, the risk of a gait far from every observed one."""
         return self.falls / (len(self._gp.indices) + SAFE_PSEUDO_STEPS)
 
-    def risk(self, prior_falls=None) -> np.ndarray:
+    def risk(self, prior_falls=None, support=None) -> np.ndarray:
         """Predicted risk of falling of every gait, ``(M,)`` in ``[0, 1]``.
 
         ``prior_falls``: ``(M,)`` what a damage prior says of each gait (1: it falls from a
         standing start on that damage); where nothing near a gait was observed, its risk is
         at least that (measured against the table's own rates: docs/archive.md).
+        ``support``: the logistic model's prior on that damage (:meth:`table_support`).
         """
         mu, _ = self._gp.query_columns()
-        untried = self.untried_risk()
+        untried = self.untried_risk(support)
         if prior_falls is not None:
             untried = np.maximum(untried, prior_falls)
         return np.clip(mu[0] + untried * (1.0 - mu[1]), 0.0, 1.0)
@@ -179,6 +219,20 @@ class FallRisk:
         """``(indices (N,), fallen (N,) bool)`` told so far."""
         return (np.array(self._gp.indices, dtype=int),
                 self._gp.observed[:, 0] > 0.5)
+
+
+def _log_likelihood(theta, beta, z, fallen):
+    """Log-likelihood of a gait of standardised stability ``z`` falling (or not) under the
+    logistic model ``P(fall) = s(theta - beta z)``, at every ``(theta, beta)``."""
+    logit = theta - beta * z
+    # log s(l) = -log(1 + e^-l); log(1 - s(l)) = -log(1 + e^l)
+    return -np.logaddexp(0.0, -logit if fallen else logit)
+
+
+def _log_support_prior(theta, beta, support):
+    theta_mean, theta_sd, beta_mean, beta_sd = support
+    return (-0.5 * ((theta - theta_mean) / theta_sd) ** 2
+            - 0.5 * ((beta - beta_mean) / beta_sd) ** 2)
 
 
 def safe_choice(scores, risk, threshold) -> np.ndarray:

@@ -84,7 +84,7 @@ class MissionLogic:
         may look one step further (``planner.horizon`` 2: :func:`following_waypoint`)."""
         following = None if goal is None else following_waypoint(pose, waypoint, goal)
         return self.sela.ask(np.asarray(pose, dtype=float), waypoint=waypoint,
-                             next_waypoint_xy=following)
+                             next_waypoint_xy=following, map_trusted=not self.adapting)
 
     def outcome(self, decision, pose, observed_gr, fallen=False, true_pose=None):
         """Record the outcome of ``decision`` and learn from it when adapting."""

@@ -111,6 +111,8 @@ class Decision:
     prior: str = 'intact'  # the prior mean in use: the intact map or a damage prior's name
 
 
+#: :attr:`Decision.prior` of a first step hedged over the intact map and the damage priors.
+HEDGED = 'intact and damage priors'
 #: How many candidates a :class:`Decision` reports.
 CANDIDATES_SHOWN = 5
 
@@ -177,6 +179,7 @@ class SELA:
                              f'{priors.generic_reward.shape[2]} outputs, this SELA has '
                              f'{candidates.shape[0]} with {motion.gr_dim}')
         self.priors = priors
+        self._support = {}  # the fall model's prior per damage prior (FallRisk.table_support)
         self.goal = None
         if goal is not None:
             self.set_goal(goal)
@@ -242,26 +245,34 @@ class SELA:
                                   self.config.priors_max_misfit)
 
     def _posterior(self, selection):
-        """``(mu (k, M), var (M,), prior falls (M,) or None)`` under ``selection``."""
+        """``(mu (k, M), var (M,), prior falls (M,) or None, fall model's support prior or
+        None)`` under ``selection``."""
         mu_t, var = self._gp.query_columns()
         if selection.index is None:
-            return mu_t, var, None
+            return mu_t, var, None, None
         table = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
-        return (self._gp.mean_columns_with_prior(table), var,
-                self.priors.fallen[selection.index].astype(float))
+        fallen = self.priors.fallen[selection.index]
+        if selection.index not in self._support:
+            self._support[selection.index] = self._fall.table_support(fallen)
+        return (self._gp.mean_columns_with_prior(table), var, fallen.astype(float),
+                self._support[selection.index])
 
     def predict(self):
         """Posterior over the archive: ``(mu (M, k), sigma (M,))`` (under the prior in use)."""
-        mu_t, var, _ = self._posterior(self.select_prior())
+        mu_t, var, _, _ = self._posterior(self.select_prior())
         return mu_t.T, np.sqrt(var)
 
-    def ask(self, pose, waypoint=None, next_waypoint_xy=None) -> Decision:
+    def ask(self, pose, waypoint=None, next_waypoint_xy=None, map_trusted=False) -> Decision:
         """Choose the next behaviour from ``pose`` (raises PlanningError if no path).
 
         ``waypoint``: the reward selection layer's answer when it runs elsewhere (the
         planner node); None: plan to the goal here and take ``planner.lookahead`` along it.
         ``next_waypoint_xy``: with ``planner.horizon`` 2 and a given ``waypoint``, the
         waypoint of the step after (None: the last step before the goal, one step only).
+        ``map_trusted``: no damage is known yet (the adapter before its detector's verdict):
+        choose on the map alone. Otherwise the first step of an adaptation with damage priors,
+        before any step has shown which damage the robot has, is hedged over the intact map
+        and every table (:meth:`_hedged_choice`).
         """
         pose = self._check_pose(pose)
         second = None
@@ -277,13 +288,16 @@ class SELA:
             waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
             if self.config.planner_horizon > 1:
                 second = next_waypoint(path, pose[:2], 2 * self.config.planner_lookahead)
+        if self.priors is not None and len(self.priors) and not self._gp.num_samples \
+                and not map_trusted:
+            return self._hedged_choice(pose, waypoint, path)
         selection = self.select_prior()
-        mu_t, var, prior_falls = self._posterior(selection)
+        mu_t, var, prior_falls, support = self._posterior(selection)
         x, y = self.motion.predict_xy_columns(pose, mu_t)
         reward = -np.hypot(x - waypoint[0], y - waypoint[1])
         sigma = np.sqrt(var)
         scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
-        risk = self._fall.risk(prior_falls)
+        risk = self._fall.risk(prior_falls, support)
         fall_aware = bool(self._fall.falls or self._prior_fall_rate is not None
                           or self._stability is not None or prior_falls is not None)
         if fall_aware:
@@ -302,6 +316,39 @@ class SELA:
                         fall_risk=float(risk[index]),
                         candidates=top_candidates(index, x, y, sigma, scores),
                         prior=selection.name)
+
+    def _hedged_choice(self, pose, waypoint, path) -> Decision:
+        """The first step on a damage not known yet: the gait whose landing is nearest the
+        waypoint on average over the intact map and every damage prior, its risk the fall
+        model's (the intact map's prior) or the share of those that see it fall, whichever is
+        higher, weighed and capped as in every step; one step ahead.
+
+        Nothing tells the damages apart before the robot has moved, so the step the intact
+        map alone picks is often one the damaged robots cannot do (measured: docs/archive.md,
+        "The first step and the fall model on a known damage")."""
+        c = self.config
+        k = self.motion.gr_dim
+        tables = [self._prior] + [g[:, :k] for g in self.priors.generic_reward]
+        distance = np.zeros(self.num_candidates)
+        for table in tables:
+            x, y = self.motion.predict_xy_columns(pose, table.T)
+            distance += np.hypot(x - waypoint[0], y - waypoint[1])
+        distance /= len(tables)
+        falls = self.priors.fallen.sum(axis=0) / len(tables)
+        risk = np.maximum(self._fall.risk(), falls)
+        scores = fall_risk.safe_choice(-distance - c.fall_risk_cost * risk, risk,
+                                       c.fall_risk_threshold)
+        index = int(np.argmax(scores))
+        gr = np.mean([table[index] for table in tables], axis=0)
+        _, var = self._gp.query_columns()
+        sigma = np.sqrt(var)
+        x, y = self.motion.predict_xy_columns(pose, self._prior.T)
+        return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
+                        predicted_pose=self.motion.predict(pose, gr),
+                        reward=float(-distance[index]), sigma=float(sigma[index]), path=path,
+                        fall_risk=float(risk[index]),
+                        candidates=top_candidates(index, x, y, sigma, scores),
+                        prior=HEDGED)
 
     def _two_step_choice(self, pose, mu_t, scores, risk, second, index):
         """Among the :data:`TWO_STEP_CANDIDATES` best gaits by ``scores``, the one from whose
