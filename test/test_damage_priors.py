@@ -54,6 +54,20 @@ def test_the_table_that_explains_the_steps_is_chosen_and_a_poor_fit_is_not():
     assert priors.select(intact, idx, seen, max_misfit=0.0).name == 'intact'
 
 
+def test_one_surprise_in_the_first_two_steps_does_not_set_the_right_table_aside():
+    """The misfit is the lower median: a first step the table explains exactly and a
+    second one chained from an odd posture (far off every prior) keep the table; two
+    steps both far off do not."""
+    _, intact, priors, _ = world()
+    idx = np.flatnonzero(~priors.fallen[0])[:2]
+    exact = priors.generic_reward[0][idx[0]]
+    odd = priors.generic_reward[0][idx[1]] + [0.6, -0.5, 1.5]
+    chosen = priors.select(intact, idx, np.vstack([exact, odd]))
+    assert chosen.name == 'remove:front_left' and chosen.misfit < 0.1
+    both_odd = priors.generic_reward[0][idx] + [0.6, -0.5, 1.5]
+    assert priors.select(intact, idx, both_odd).name == 'intact'
+
+
 def test_a_fall_counts_for_the_tables_where_that_gait_falls():
     _, intact, priors, _ = world()
     tied = DamagePriors(priors.names, np.stack([intact * 0.5, intact * 0.5]),

@@ -168,6 +168,37 @@ def test_falls_that_support_does_not_explain_teach_a_flat_model():
     assert risk.support_model[1] < prior_beta - 0.5
 
 
+def test_a_table_sets_the_support_prior_of_its_damage_and_the_robot_still_moves_it():
+    """The support model's prior on a foreseen damage comes from that damage's table: a
+    damage whose gaits never fall makes even poorly supported gaits safe, one whose poorly
+    supported gaits fall keeps them risky; the spreads stay the generic prior's, so the
+    robot's own falls move it as fast."""
+    from sela_ros.core.fall_risk import BETA_PRIOR, THETA_PRIOR
+
+    c, support = _supported()
+    risk = FallRisk(c, sigma=0.05, stability=support)
+    low = support < 2.0
+    benign = risk.table_support(np.zeros(len(c), bool))
+    harsh = risk.table_support(support < np.quantile(support, 0.2))
+    assert benign[1] == harsh[1] == THETA_PRIOR[1] and benign[3] == BETA_PRIOR[1]
+    assert benign[0] < THETA_PRIOR[0] - 2.0 and harsh[2] > BETA_PRIOR[0] + 1.0
+    generic, r_benign, r_harsh = risk.risk(), risk.risk(support=benign), \
+        risk.risk(support=harsh)
+    assert r_benign[low].max() < 0.1 < 0.3 < generic[low].min()
+    assert r_harsh[low].min() > generic[low].min()
+    # The same robot falling three times on poorly supported gaits: under the benign prior
+    # the poorly supported gaits far from those are ruled out at 0.3 all the same.
+    fell = np.flatnonzero(support < 1.9)[:3]
+    for i in fell:
+        risk.tell(i, True)
+    far = np.min(np.linalg.norm(c[:, None] - c[fell][None], axis=2), axis=1) > 0.2
+    assert (far & low).sum() >= 5
+    assert np.all(risk.risk(support=benign)[far & low] > 0.3)
+    assert FallRisk(c).table_support(np.zeros(len(c), bool)) is None  # no stability
+    with pytest.raises(ValueError, match='fallen must have shape'):
+        risk.table_support(np.zeros(3, bool))
+
+
 def test_stability_is_checked():
     with pytest.raises(ValueError, match='stability'):
         FallRisk(_grid(3), stability=np.ones(4))
