@@ -329,11 +329,13 @@ class SELA:
         c = self.config
         k = self.motion.gr_dim
         tables = [self._prior] + [g[:, :k] for g in self.priors.generic_reward]
-        distance = np.zeros(self.num_candidates)
+        distance, x, y = (np.zeros(self.num_candidates) for _ in range(3))
         for table in tables:
-            x, y = self.motion.predict_xy_columns(pose, table.T)
-            distance += np.hypot(x - waypoint[0], y - waypoint[1])
-        distance /= len(tables)
+            tx, ty = self.motion.predict_xy_columns(pose, table.T)
+            distance += np.hypot(tx - waypoint[0], ty - waypoint[1])
+            x += tx
+            y += ty
+        distance, x, y = distance / len(tables), x / len(tables), y / len(tables)
         falls = self.priors.fallen.sum(axis=0) / len(tables)
         risk = np.maximum(self._fall.risk(), falls)
         scores = fall_risk.safe_choice(-distance - c.fall_risk_cost * risk, risk,
@@ -342,7 +344,6 @@ class SELA:
         gr = np.mean([table[index] for table in tables], axis=0)
         _, var = self._gp.query_columns()
         sigma = np.sqrt(var)
-        x, y = self.motion.predict_xy_columns(pose, self._prior.T)
         return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
                         predicted_pose=self.motion.predict(pose, gr),
                         reward=float(-distance[index]), sigma=float(sigma[index]), path=path,
