@@ -107,6 +107,9 @@ class FallRisk:
                               _Z_GRID[0], _Z_GRID[-1])
             theta, beta = np.meshgrid(_THETA_GRID, _BETA_GRID, indexing='ij')
             self._theta, self._beta = theta.ravel(), beta.ravel()
+            # P(fall) at every grid point of (theta, beta) and of z, once: (2337, 161).
+            self._p_grid = 1.0 / (1.0 + np.exp(-(self._theta[:, None]
+                                                 - self._beta[:, None] * _Z_GRID[None, :])))
             self._log_prior = _log_support_prior(self._theta, self._beta,
                                                  (*THETA_PRIOR, *BETA_PRIOR))
         self.reset()
@@ -188,11 +191,8 @@ class FallRisk:
             if self._z is None:
                 self._untried[key] = np.full(self._args[0].shape[0], self.base_rate)
             else:
-                w = self._weights(key)
-                keep = w > 1e-9 * w.max()
-                p = 1.0 / (1.0 + np.exp(-(self._theta[keep, None]
-                                          - self._beta[keep, None] * _Z_GRID[None, :])))
-                self._untried[key] = np.interp(self._z, _Z_GRID, w[keep] @ p / w[keep].sum())
+                self._untried[key] = np.interp(self._z, _Z_GRID,
+                                               self._weights(key) @ self._p_grid)
         return self._untried[key]
 
     @property
