@@ -179,12 +179,21 @@ class SELA:
                              f'{priors.generic_reward.shape[2]} outputs, this SELA has '
                              f'{candidates.shape[0]} with {motion.gr_dim}')
         self.priors = priors
-        self._support = {}  # the fall model's prior per damage prior (FallRisk.table_support)
         self.goal = None
         if goal is not None:
             self.set_goal(goal)
         self.reset_learning()
         self.forget_falls()
+
+    @property
+    def priors(self):
+        """The damage priors (:class:`~sela_ros.core.damage_priors.DamagePriors`) or None."""
+        return self._priors
+
+    @priors.setter
+    def priors(self, priors):
+        self._priors = priors
+        self._support = {}  # the fall model's prior per table (FallRisk.table_support)
 
     @property
     def num_candidates(self) -> int:
