@@ -7,7 +7,6 @@ and acting are the same steps: no reset, no separate training phase.
 """
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -16,7 +15,7 @@ import numpy as np
 from sela_ros.core import acquisition, damage_priors, fall_risk, gp
 from sela_ros.core.motion import PointMotion, SE2Motion  # noqa: F401 (also imported from here)
 from sela_ros.core.planning import next_waypoint, straight_line_planner
-from sela_ros.core.validation import check_number
+from sela_ros.core.sela_config import HORIZONS, SELAConfig  # noqa: F401 (imported from here)
 
 
 def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
@@ -24,73 +23,8 @@ def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
     return motion.generic_reward(pose_before, pose_after)
 
 
-@dataclass(frozen=True)
-class SELAConfig:
-    """SELA parameters, with the paper's (Appendix) defaults, in one place.
-
-    Dotted names (``gp.kernel.sigma``) are the field names with ``_`` read as ``.``;
-    the same names are used in ``config/*.yaml``.
-    """
-
-    gp_kernel_sigma: float = gp.DEFAULT_SIGMA
-    gp_kernel_variance: float = gp.DEFAULT_VARIANCE
-    gp_noise: float = gp.DEFAULT_NOISE
-    acquisition_ucb_alpha: float = acquisition.DEFAULT_ALPHA
-    planner_lookahead: float = 0.1
-    # Steps looked ahead: 1, the paper's (the gait landing nearest the waypoint), or 2 (the
-    # gait from whose predicted end pose the best next gait lands nearest a second waypoint
-    # as far again along the path). Maps set their own (learning.archive_config).
-    planner_horizon: float = 1.0
-    goal_eps: float = 0.1
-    # Risk of falling accepted (fall-aware acquisition); 1 or more: falls are not avoided.
-    fall_risk_threshold: float = fall_risk.DEFAULT_THRESHOLD
-    # Kernel length of the fall GP (normalised descriptors); 0: gp.kernel.sigma. Falls are
-    # more local than displacements on the 8-D map (docs/archive.md), so maps set their own.
-    fall_kernel_sigma: float = 0.0
-    # What a fall costs, in metres of the specialised reward: UCB takes cost x risk off each
-    # gait's score (0: only the threshold keeps falls away).
-    fall_risk_cost: float = fall_risk.DEFAULT_COST
-    # A damage prior (a table of the gaits on a foreseen damage) is used only while its median
-    # squared error over the steps seen is below this (units of the chaining error); 0: the
-    # tables are never used.
-    priors_max_misfit: float = damage_priors.DEFAULT_MAX_MISFIT
-
-    def __post_init__(self):
-        for f in dataclasses.fields(self):
-            check_number(_dotted(f.name), getattr(self, f.name), low=0.0,
-                         low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise',
-                                                 'fall_kernel_sigma', 'fall_risk_cost',
-                                                 'priors_max_misfit'))
-        if self.planner_horizon not in HORIZONS:
-            raise ValueError(f'planner.horizon must be one of {HORIZONS}, got '
-                             f'{self.planner_horizon!r}')
-
-    @classmethod
-    def keys(cls):
-        return [_dotted(f.name) for f in dataclasses.fields(cls)]
-
-    @classmethod
-    def from_dict(cls, values: dict) -> SELAConfig:
-        """Build from ``{'gp.kernel.sigma': 0.1, ...}``; unknown keys raise ValueError."""
-        known = {_dotted(f.name): f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - set(known))
-        if unknown:
-            raise ValueError(f'unknown SELA parameter(s) {unknown}; expected some of '
-                             f'{sorted(known)}')
-        return cls(**{known[k]: float(v) for k, v in values.items()})
-
-    def to_dict(self) -> dict:
-        return {_dotted(k): v for k, v in dataclasses.asdict(self).items()}
-
-
-#: Steps SELA can look ahead (``planner.horizon``).
-HORIZONS = (1, 2)
 #: With two steps: how many of the best first gaits (by the one-step score) are looked at.
 TWO_STEP_CANDIDATES = 40
-
-
-def _dotted(name):
-    return name.replace('_', '.')
 
 
 @dataclass
