@@ -5,6 +5,12 @@ import random
 import tempfile
 
 import pytest
+from hypothesis import settings
+
+# Property tests draw the same examples on every run: a failure is met again by the next run,
+# not once by chance in CI. No deadline: a loaded machine must not fail a slow example.
+settings.register_profile('sela_ros', derandomize=True, deadline=None, database=None)
+settings.load_profile('sela_ros')
 
 _DOMAIN_LOCK = None
 

@@ -1,7 +1,8 @@
 """Property-based tests of the parameter validators used by every node's set-callback."""
 import math
+import sys
 
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from sela_ros.core.damage_detection import DetectorConfig
@@ -81,18 +82,21 @@ def test_sim_bridge_start_up_parameters_are_read_only():
 
 @given(anything, st.one_of(st.none(), st.floats(-10, 10)),
        st.one_of(st.none(), st.floats(-10, 10)))
+@example(2 ** 53 + 1, None, None)  # an integer no double holds: the nearest one is taken
+@example(10 ** 400, None, None)    # beyond every double: refused, not an OverflowError
 def test_check_of_a_double_accepts_numbers_in_range_and_integers(value, low, high):
     spec = Spec('x', 0.5, 'a number', low=low, high=high, unit=' m')
     ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
-          and math.isfinite(value) and (low is None or value >= low)
-          and (high is None or value <= high))
+          and (math.isfinite(value) if isinstance(value, float)
+               else abs(value) <= sys.float_info.max)
+          and (low is None or value >= low) and (high is None or value <= high))
     problem = check(spec, value)
     assert (problem is None) == ok
     if not ok:
         assert problem.startswith('must be a number') and problem.endswith(f'got {value!r}')
     coerced = coerce(spec, value)
     if ok:
-        assert isinstance(coerced, float) and coerced == value
+        assert isinstance(coerced, float) and coerced == float(value)
 
 
 @given(anything)

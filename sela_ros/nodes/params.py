@@ -12,6 +12,7 @@ the read-only flag. An integer is accepted where a double is expected (``ros2 pa
 The checks are ROS-free (property-tested); only :func:`declare` touches rclpy.
 """
 import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -144,7 +145,9 @@ def _fits(spec, value):
         return _is_sequence(value) and all(_fits(item, v) for v in value)
     if not (_is_int(value) if kind == 'integer' else _is_number(value)):
         return False
-    if not math.isfinite(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return False
+    if kind == 'double' and abs(value) > sys.float_info.max:  # an integer no double holds
         return False
     return ((spec.low is None or value >= spec.low)
             and (spec.high is None or value <= spec.high))
@@ -165,11 +168,16 @@ def check(spec, value):
 
 def coerce(spec, value):
     """``value`` in the spec's type where it is an integer given for a double."""
-    if spec.type == 'double' and _is_int(value):
+    if spec.type == 'double' and _as_double(value):
         return float(value)
-    if spec.type == 'double_array' and _is_sequence(value) and all(_is_int(v) for v in value):
+    if spec.type == 'double_array' and _is_sequence(value) and all(map(_as_double, value)):
         return [float(v) for v in value]
     return value
+
+
+def _as_double(value):
+    """An integer a double can hold (the nearest one; larger ones are left to be refused)."""
+    return _is_int(value) and abs(value) <= sys.float_info.max
 
 
 def declare(node, specs, on_change=None):
