@@ -47,6 +47,12 @@ class Decision:
 
 #: :attr:`Decision.prior` of a first step hedged over the intact map and the damage priors.
 HEDGED = 'intact and damage priors'
+def prior_reason(name) -> str:
+    """Why the prior mean ``name`` (:attr:`Decision.prior`) is the one in use, for logs."""
+    return ('no step has shown the damage yet: the first step is hedged over them'
+            if name == HEDGED else 'the one that best explains the steps seen')
+
+
 #: How many candidates a :class:`Decision` reports.
 CANDIDATES_SHOWN = 5
 

@@ -28,7 +28,7 @@ from sela_ros.core.mission_state import (
 )
 from sela_ros.core.mission_status import detection_status, mission_status
 from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
-from sela_ros.core.sela import HEDGED
+from sela_ros.core.sela import prior_reason
 from sela_ros.core.stepper_io import (
     AskedPlan,
     Level,
@@ -356,9 +356,8 @@ class MissionStepper:
         d = p.decision
         said = []
         if d.prior != self.prior:
-            why = ('no step has shown the damage yet: the first step is hedged over them'
-                   if d.prior == HEDGED else 'the one that best explains the steps seen')
-            said.append(Report(Level.OK, f'prior: {d.prior} (was {self.prior}), {why}'))
+            said.append(Report(Level.OK, f'prior: {d.prior} (was {self.prior}), '
+                               f'{prior_reason(d.prior)}'))
             self.prior = d.prior
         # Write-ahead: the gait in flight is recorded before it is sent, so that a restarted
         # adapter knows it and waits for its (latched) outcome instead of losing it.
