@@ -172,8 +172,8 @@ class FallRisk:
         for flag in (True, False):
             counts = np.bincount(bins[fallen == flag], minlength=_Z_GRID.size) * weight
             used = np.flatnonzero(counts)
-            logit = self._theta[:, None] - self._beta[:, None] * _Z_GRID[None, used]
-            log_post -= np.logaddexp(0.0, -logit if flag else logit) @ counts[used]
+            log_post += _log_likelihood(self._theta[:, None], self._beta[:, None],
+                                        _Z_GRID[None, used], flag) @ counts[used]
         w = np.exp(log_post - log_post.max())
         w /= w.sum()
         return (float(w @ self._theta), THETA_PRIOR[1], float(w @ self._beta), BETA_PRIOR[1])
