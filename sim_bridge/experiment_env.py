@@ -48,6 +48,8 @@ class HexapodEnvironment:
 
     Attributes:
         falls: gaits after which the robot had fallen (and was righted) since ``reset``.
+        standing: whether the next gait starts from a standing start (after ``reset`` and
+            after a righting), as the damage priors' tables ran every gait.
         sim_seconds: wall-clock seconds spent inside the simulator (``execute``).
     """
 
@@ -61,6 +63,7 @@ class HexapodEnvironment:
                              solver_iterations=solver_iterations)
         self.observed = ObservedHexapod(self.robot, noise_std=noise_std, seed=seed)
         self.falls = 0
+        self.standing = True
         self.sim_seconds = 0.0
 
     def close(self) -> None:
@@ -76,6 +79,7 @@ class HexapodEnvironment:
         """Standing at the origin, yaw 0, with the damage (start of a replicate)."""
         self.observed.reset()
         self.falls = 0
+        self.standing = True
 
     def observed_pose(self) -> np.ndarray:
         return self.observed.observed_pose()
@@ -90,6 +94,7 @@ class HexapodEnvironment:
             raise IndexError(f'gait index {index} outside the archive (0..{len(self.params) - 1})')
         start = time.perf_counter()
         execution = self.observed.execute(self.params[index])
+        self.standing = bool(execution.fallen)
         if execution.fallen:
             self.falls += 1
             # Right it where it lies: the observation after the gait stays valid.

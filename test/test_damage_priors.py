@@ -68,6 +68,33 @@ def test_one_surprise_in_the_first_two_steps_does_not_set_the_right_table_aside(
     assert priors.select(intact, idx, both_odd).name == 'intact'
 
 
+def test_a_table_that_reproduced_the_standing_start_is_kept_through_chained_surprises():
+    """The first step from a standing start is the table's own experiment: the table that
+    repeats it (up to the noise) is used with chained steps off by up to twice the chaining
+    error (``priors.max.misfit.reproduced``), where otherwise it would be set aside; one
+    that did not reproduce it gets no such exception, nor does a cap of 0 (never)."""
+    _, intact, priors, _ = world()
+    idx = np.flatnonzero(~priors.fallen[0])[:3]
+    table = priors.generic_reward[0][idx]
+    chained = [0.11, -0.11, 0.27]  # about 1.2 per output in units of the chaining error
+    seen = np.vstack([table[0], table[1:] + chained])
+    standing = [True, False, False]
+    assert priors.select(intact, idx, seen).name == 'intact'
+    kept = priors.select(intact, idx, seen, standing=standing)
+    assert kept.name == 'remove:front_left' and 1.0 < kept.misfit < 2.0
+    assert priors.select(intact, idx, seen, standing=standing,
+                         max_misfit_reproduced=1.0).name == 'intact'
+    assert priors.select(intact, idx, seen, max_misfit=0.0, standing=standing).name == 'intact'
+    # Off by 5 cm from a standing start: not reproduced, no exception.
+    missed = seen + [[0.05, 0.05, 0.0], [0, 0, 0], [0, 0, 0]]
+    assert priors.select(intact, idx, missed, standing=standing).name == 'intact'
+    # Chained steps off by more than the exception allows.
+    far = np.vstack([table[0], table[1:] + np.multiply(chained, 1.6)])
+    assert priors.select(intact, idx, far, standing=standing).name == 'intact'
+    with pytest.raises(ValueError, match='standing has 2 flags for 3 steps'):
+        priors.select(intact, idx, seen, standing=[True, False])
+
+
 def test_a_fall_counts_for_the_tables_where_that_gait_falls():
     _, intact, priors, _ = world()
     tied = DamagePriors(priors.names, np.stack([intact * 0.5, intact * 0.5]),

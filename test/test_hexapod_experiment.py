@@ -158,7 +158,9 @@ def test_environment_walks_without_reset_and_checks_index():
     with HexapodEnvironment(params, 'remove:middle_right', noise_std=0.0, seed=0) as env:
         env.reset()
         np.testing.assert_allclose(env.true_pose(), [0, 0, 0], atol=0.02)
+        assert env.standing  # the first gait starts as the tables' do
         first = env.execute(0)
+        assert env.standing == (env.falls == 1)  # chained next, unless righted after a fall
         np.testing.assert_allclose(first, env.true_pose())
         second = env.execute(0)  # starts where the first ended
         expected = evaluate_gait(params[0], 'remove:middle_right').generic_reward
@@ -167,3 +169,5 @@ def test_environment_walks_without_reset_and_checks_index():
         assert env.sim_seconds > 0
         with pytest.raises(IndexError):
             env.execute(2)
+        env.reset()
+        assert env.standing

@@ -53,6 +53,11 @@ def test_a_step_that_ends_fallen_is_learnt_as_going_nowhere_when_the_robot_is_re
     assert record.fallen and record.observed_gr == tumble  # reported as it happened
     learnt = logic.sela.observations[1][0].tolist()
     assert learnt == ([0.0, 0.0, 0.0] if reset_on_fall else tumble)
+    # Reset after the fall, the robot starts the next step standing: the damage priors'
+    # tables ran every gait from there (SELA.tell(..., standing_start=True)).
+    logic.outcome(logic.decide(pose, np.array([0.3, 0.0])), pose, [0.1, 0.0, 0.0])
+    logic.outcome(logic.decide(pose, np.array([0.3, 0.0])), pose, [0.1, 0.0, 0.0])
+    assert logic.sela.state_dict()['standing_starts'] == [False, reset_on_fall, False]
 
 
 def test_odometry_round_trip_of_the_first_pose():

@@ -86,7 +86,8 @@ def _in_process_mission(damage, seed, goal, on_step=None):
                                  plan['map.height'], plan.get('map.obstacles', []))
     sela_config = {k: adapter[k] for k in ('gp.kernel.sigma', 'gp.noise',
                                            'acquisition.ucb.alpha', 'goal.eps',
-                                           'planner.horizon', 'priors.max.misfit')}
+                                           'planner.horizon', 'priors.max.misfit',
+                                           'priors.max.misfit.reproduced')}
     from sela_ros.core.damage_priors import resolve_priors  # the adapter's, as it loads them
     priors = resolve_priors(adapter['priors'], default_archive_path(), archive.params)
     assert priors is not None and len(priors) == 6

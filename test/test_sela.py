@@ -45,7 +45,8 @@ def test_config_dotted_names():
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
                                 'acquisition.ucb.alpha', 'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
-                                'priors.max.misfit', 'planner.horizon'}
+                                'priors.max.misfit', 'priors.max.misfit.reproduced',
+                                'planner.horizon'}
     with pytest.raises(ValueError, match="unknown SELA parameter.*gp.kernel.sgima"):
         SELAConfig.from_dict({'gp.kernel.sgima': 0.2})
     with pytest.raises(ValueError, match='goal.eps'):
@@ -101,6 +102,27 @@ def test_sela_reaches_goal_nearly_as_fast_as_the_oracle(seed):
     # Looking two steps ahead with the true outcomes gets there too, never slower here.
     ahead = METHODS['oracle_2step'](world, problem, np.random.default_rng(seed))
     assert ahead.success and ahead.steps <= oracle.steps
+
+
+def test_sela_is_told_which_steps_started_standing(monkeypatch):
+    """The runner tells SELA whether each step started standing, as the environment says
+    (after a reset, and after a fallen robot was righted), for the damage priors."""
+    class Righted(ToyWorld):
+        def reset(self):
+            super().reset()
+            self.standing = True
+
+        def execute(self, index):
+            self.standing = len(told) == 1  # as if the second step had been righted
+            return super().execute(index)
+
+    told = []
+    tell = SELA.tell
+    monkeypatch.setattr(SELA, 'tell', lambda self, i, gr, standing_start=False: (
+        told.append(standing_start), tell(self, i, gr, standing_start))[1])
+    world = Righted(360, noise_std=0.01, rng=np.random.default_rng(0))
+    assert run_sela(world, toy_problem(world), np.random.default_rng(0)).success
+    assert told[:4] == [True, False, True, False] and not any(told[3:])
 
 
 def test_every_method_returns_a_result():

@@ -43,6 +43,10 @@ BAD_STATES = {
                       r'generic_rewards\[0\]'),
     'lengths differ': (lambda s: s['sela'].update(indices=[3]), '1 indices but 2'),
     'bad goal': (lambda s: s['sela'].update(goal=[1.0]), 'goal is'),
+    'standing flags short': (lambda s: s['sela'].update(standing_starts=[True]),
+                             r'standing_starts is \[True\], expected 2 booleans'),
+    'standing flag not a boolean': (lambda s: s['sela'].update(standing_starts=[1, 0]),
+                                    'standing_starts is'),
     'other archive': (lambda s: s['sela'].update(num_candidates=5), 'num_candidates is 5'),
 }
 
@@ -71,11 +75,18 @@ def test_a_good_state_restores_and_replays_into_sela(tmp_path):
     sela = SELA(np.random.default_rng(0).random((SIZE, 2)), np.zeros((SIZE, 3)), SE2Motion())
     state = _good()
     state['sela'] = dict(sela.state_dict(), indices=[3, 7],
-                         generic_rewards=[[0.1, 0.0, 0.2], [0.0, -0.1, 0.0]])
+                         generic_rewards=[[0.1, 0.0, 0.2], [0.0, -0.1, 0.0]],
+                         standing_starts=[True, False])
     atomic_write_json(path, state)
     restored, message = resume_state(path, SIZE, lambda s: sela.load_state_dict(s['sela']))
     assert message is None and restored['mission'] == {'steps': 2}
     assert sela.observations[0].tolist() == [3, 7]
+    assert sela.state_dict()['standing_starts'] == [True, False]
+    # A file from before standing starts were recorded: none of its steps claims one.
+    del state['sela']['standing_starts']
+    atomic_write_json(path, state)
+    resume_state(path, SIZE, lambda s: sela.load_state_dict(s['sela']))
+    assert sela.state_dict()['standing_starts'] == [False, False]
 
 
 @pytest.mark.parametrize('name', sorted(BAD_STATES) + ['restore raises'])

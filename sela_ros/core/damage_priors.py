@@ -16,7 +16,8 @@ from the last one differs from the same gait from a standing start, robust to a 
 observed falls. A table is used only while it explains the steps well in absolute terms too (median
 squared error below ``max_misfit``, in units of :data:`RESIDUAL_SCALE`; of an even number
 of steps the lower of the two middle ones, so that one surprise in the first two steps does
-not set the right table aside): a damage nobody
+not set the right table aside; up to ``max_misfit_reproduced`` for a table that reproduced
+every step the robot made from a standing start, which is what the table ran): a damage nobody
 foresaw is best explained by the nearest table, which can still be wrong about most gaits,
 and then the intact map with SELA's usual learning does better (docs/archive.md, "Damage
 priors"). The GPs keep their observations whatever prior is chosen; only their prior mean
@@ -48,6 +49,16 @@ OUTLIER_SCALE = 5.0
 #: Median squared error per step (units of RESIDUAL_SCALE) above which a table is not used
 #: (measured against 0.8, 1.0 and no cap: docs/archive.md).
 DEFAULT_MAX_MISFIT = 0.6
+#: A step from a standing start (the first of a run, or after the robot was put back on its
+#: feet) is the experiment the table ran: the right table repeats it up to the position
+#: noise (squared error 0.02 per output). Its error counts as this many times smaller.
+STANDING_PRECISION = 3.0
+#: A table whose squared error per output is under this on every standing-start step seen
+#: has reproduced them; wrong tables rarely do (docs/archive.md).
+REPRODUCED = 0.1
+#: The cap on the misfit of a table that reproduced the standing-start steps: its chained
+#: steps may then be off by more (a gait chained from an odd posture) before it is set aside.
+DEFAULT_MAX_MISFIT_REPRODUCED = 2.0
 FORMAT_VERSION = 1
 
 
@@ -125,7 +136,8 @@ class DamagePriors:
                 '`make priors` (scripts/build_priors.py)')
 
     def select(self, base_gr, indices, observed, fall_indices=(), fallen=(),
-               max_misfit=DEFAULT_MAX_MISFIT) -> Selection:
+               max_misfit=DEFAULT_MAX_MISFIT, standing=(),
+               max_misfit_reproduced=DEFAULT_MAX_MISFIT_REPRODUCED) -> Selection:
         """The prior that best explains the steps seen: the intact map or a table.
 
         Args:
@@ -135,6 +147,10 @@ class DamagePriors:
             max_misfit: a table whose median squared error (units of RESIDUAL_SCALE) over the
                 steps is above this is not used (of an even number of steps, the lower of the
                 two middle errors).
+            standing: ``(N,)`` which of the learnt steps started from a standing start (empty:
+                none). Their errors weigh :data:`STANDING_PRECISION` times more, and a table
+                that reproduced all of them (:data:`REPRODUCED`) is used up to
+                ``max_misfit_reproduced`` instead of ``max_misfit``.
         """
         indices = np.asarray(indices, dtype=int).reshape(-1)
         if not indices.size or not len(self):
@@ -155,12 +171,18 @@ class DamagePriors:
                                 self.fallen[:, fall_indices]])
         r = (observed[keep][None] - predicted) / scale
         q = np.sum(r * r, axis=2)  # (tables, steps)
+        standing = np.asarray(standing, dtype=bool).reshape(-1)
+        if standing.size not in (0, indices.size):
+            raise ValueError(f'standing has {standing.size} flags for {indices.size} steps')
+        standing = standing[keep] if standing.size else np.zeros(q.shape[1], bool)
         # Robust: a step is explained by the table up to the chaining error, or is one of a
-        # few surprises (a gait chained from an odd posture) that count for little.
+        # few surprises (a gait chained from an odd posture) that count for little. A step
+        # from a standing start is no chaining: the table's own experiment.
+        weighed = np.where(standing, STANDING_PRECISION ** 2, 1.0) * q
         wide = OUTLIER_SCALE ** 2
-        loglik = np.logaddexp(np.log1p(-OUTLIER_FRACTION) - 0.5 * q,
+        loglik = np.logaddexp(np.log1p(-OUTLIER_FRACTION) - 0.5 * weighed,
                               np.log(OUTLIER_FRACTION) - 0.5 * k * np.log(wide)
-                              - 0.5 * q / wide).sum(axis=1)
+                              - 0.5 * weighed / wide).sum(axis=1)
         # The lower median: the first step (from a standing start, where the right table is
         # exact) and one chained surprise must not make a mean of 0.02 and 15 (a gait
         # chained from an odd posture) that sets the right table aside (docs/archive.md).
@@ -169,6 +191,8 @@ class DamagePriors:
         p = np.where(falls, P_FALL_IF_FALLS, P_FALL_IF_STANDS)
         loglik += np.sum(np.where(fallen, np.log(p), np.log1p(-p)), axis=1)
         best = int(np.argmax(loglik))
+        if max_misfit > 0 and standing.any() and np.all(q[best, standing] / k < REPRODUCED):
+            max_misfit = max(max_misfit, max_misfit_reproduced)
         if best == 0 or misfit[best] > max_misfit:
             return Selection(None, 'intact', float(misfit[0]))
         return Selection(best - 1, self.names[best - 1], float(misfit[best]))

@@ -76,7 +76,10 @@ class MissionLogic:
         self.reset_on_fall = bool(reset_on_fall)
         self.adapting = bool(adapt_on_start)
         self.adaptations = 1 if adapt_on_start else 0
-        self.last = None  # (index, learnt generic reward) of the latest outcome
+        self.last = None  # (index, learnt generic reward, standing start) of the latest step
+        # Whether the next step starts standing: after a fall and the reset that follows it
+        # (reset_on_fall). Unknown at start-up (the robot may have walked): not claimed.
+        self.standing_next = False
         self.records = []
 
     def decide(self, pose, waypoint, goal=None):
@@ -91,9 +94,10 @@ class MissionLogic:
         observed_gr = np.asarray(observed_gr, dtype=float)
         learnt = np.zeros_like(observed_gr) if fallen and self.reset_on_fall else observed_gr
         self.sela.tell_fall(decision.index, bool(fallen))
+        self.last = (decision.index, learnt, self.standing_next)
         if self.adapting:
-            self.sela.tell(decision.index, learnt)
-        self.last = (decision.index, learnt)
+            self.sela.tell(*self.last)
+        self.standing_next = bool(fallen) and self.reset_on_fall
         record = StepRecord(
             step=len(self.records) + 1, behavior_index=int(decision.index),
             pose=np.asarray(pose, float).tolist(), waypoint=decision.waypoint.tolist(),
@@ -136,7 +140,7 @@ class MissionLogic:
             return True
         # 'evidence': the triggering gait had been learnt before and now does something
         # else: that is a new damage; a gait tried for the first time proves nothing.
-        index, latest = self.last
+        index, latest, _ = self.last
         indices, observed = self.sela.observations
         before = observed[:-1][indices[:-1] == index]
         if not len(before):

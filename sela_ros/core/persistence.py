@@ -136,6 +136,11 @@ def _learner_problem(sela, archive_size, gr_dim):
         if not (isinstance(reward, list) and len(reward) == gr_dim
                 and all(_is_number(v) for v in reward)):
             return f'generic_rewards[{n}] is {reward!r}, expected {gr_dim} finite numbers'
+    standing = sela.get('standing_starts', [False] * len(indices))
+    if not (isinstance(standing, list) and len(standing) == len(indices)
+            and all(isinstance(v, bool) for v in standing)):
+        return (f'standing_starts is {standing!r}, expected {len(indices)} booleans (one per '
+                'index)')
     goal = sela.get('goal')
     if goal is not None and not (isinstance(goal, list) and len(goal) == 2
                                  and all(_is_number(v) for v in goal)):

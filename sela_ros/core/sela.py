@@ -156,6 +156,7 @@ class SELA:
         c = self.config
         self._gp = gp.CandidateSetGP(self._candidates, self._prior, sigma=c.gp_kernel_sigma,
                                      variance=c.gp_kernel_variance, noise=c.gp_noise)
+        self._standing = []  # per observation: did the step start from a standing start?
 
     def forget_falls(self) -> None:
         """Forget every observed fall: back to the prior fall rates."""
@@ -191,7 +192,8 @@ class SELA:
         fall_idx, fallen = self._fall.observations
         idx, grs = self.observations
         return self.priors.select(self._prior, idx, grs, fall_idx, fallen,
-                                  self.config.priors_max_misfit)
+                                  self.config.priors_max_misfit, self._standing,
+                                  self.config.priors_max_misfit_reproduced)
 
     def _posterior(self, selection):
         """``(mu (k, M), var (M,), prior falls (M,) or None, fall model's support prior or
@@ -325,9 +327,12 @@ class SELA:
             value = value - first[top]
         return int(top[int(np.argmax(value))]) if np.isfinite(value).any() else index
 
-    def tell(self, index: int, observed_gr) -> None:
-        """Learn that behaviour ``index`` produced the generic reward ``observed_gr``."""
+    def tell(self, index: int, observed_gr, standing_start: bool = False) -> None:
+        """Learn that behaviour ``index`` produced the generic reward ``observed_gr``;
+        ``standing_start``: the step started with the robot standing (the first of a run, or
+        after it was put back on its feet), as the damage priors' tables ran every gait."""
         self._gp.add_sample(index, observed_gr)
+        self._standing.append(bool(standing_start))
 
     def tell_fall(self, index: int, fallen: bool) -> None:
         """Learn whether behaviour ``index`` tipped the robot over. Every step tells it,
@@ -347,6 +352,7 @@ class SELA:
                 'config': self.config.to_dict(),
                 'goal': None if self.goal is None else self.goal.tolist(),
                 'indices': idx.tolist(), 'generic_rewards': grs.tolist(),
+                'standing_starts': list(self._standing),
                 'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist()}
 
     def load_state_dict(self, state: dict) -> None:
@@ -362,6 +368,11 @@ class SELA:
         indices = list(state.get('indices', []))
         grs = np.asarray(state.get('generic_rewards', []), dtype=float).reshape(
             len(indices), self.motion.gr_dim)
+        # Files written before standing starts were recorded: none.
+        standing = [bool(f) for f in state.get('standing_starts', [False] * len(indices))]
+        if len(standing) != len(indices):
+            raise ValueError(f'state has {len(indices)} indices but {len(standing)} '
+                             'standing_starts flags')
         fall_indices = [int(i) for i in state.get('fall_indices', [])]
         fallen = [bool(f) for f in state.get('fallen', [])]
         if len(fall_indices) != len(fallen):
@@ -369,7 +380,7 @@ class SELA:
                              'fallen flags')
         self.reset_learning()
         self.forget_falls()
-        for i, y in zip(indices, grs):
-            self.tell(int(i), y)
+        for i, y, st in zip(indices, grs, standing):
+            self.tell(int(i), y, st)
         for i, f in zip(fall_indices, fallen):
             self.tell_fall(i, f)

@@ -42,13 +42,18 @@ class SELAConfig:
     # squared error over the steps seen is below this (units of the chaining error); 0: the
     # tables are never used.
     priors_max_misfit: float = damage_priors.DEFAULT_MAX_MISFIT
+    # The same cap for a table that reproduced every step the robot made from a standing
+    # start (what the table ran; needs tell(..., standing_start=True)); below priors.max.misfit:
+    # no exception.
+    priors_max_misfit_reproduced: float = damage_priors.DEFAULT_MAX_MISFIT_REPRODUCED
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             check_number(_dotted(f.name), getattr(self, f.name), low=0.0,
                          low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise',
                                                  'fall_kernel_sigma', 'fall_risk_cost',
-                                                 'priors_max_misfit'))
+                                                 'priors_max_misfit',
+                                                 'priors_max_misfit_reproduced'))
         if self.planner_horizon not in HORIZONS:
             raise ValueError(f'planner.horizon must be one of {HORIZONS}, got '
                              f'{self.planner_horizon!r}')

@@ -165,11 +165,12 @@ def _task_phase(env, problem, choose, learn=None, learning_iterations=0) -> RunR
                 before = np.asarray(env.observed_pose(), dtype=float).copy()
                 index = choose(before)
                 falls = getattr(env, 'falls', 0)
+                standing = bool(getattr(env, 'standing', False))
                 after = env.execute(index)
                 steps += 1
                 if learn is not None:
                     learn(index, observed_generic_reward(before, after, problem.motion),
-                          getattr(env, 'falls', 0) > falls)
+                          getattr(env, 'falls', 0) > falls, standing)
             reached.append(steps)
     except PlanningError:
         return RunResult(False, steps, learning_iterations, reached)
@@ -199,9 +200,9 @@ def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
     env.reset()
     sela = problem.make_sela(extensions=True)
 
-    def learn(index, gr, fallen):
+    def learn(index, gr, fallen, standing):
         sela.tell_fall(index, fallen)
-        sela.tell(index, gr)
+        sela.tell(index, gr, standing_start=standing)
 
     return _task_phase(env, problem, _ask(sela, problem), learn=learn)
 

@@ -167,7 +167,7 @@ def ite_targets(prior_gr) -> np.ndarray:
 #: SELA parameters a results.json records (resolved: the archive's own where left out).
 RECORDED_SELA_PARAMETERS = ('gp.kernel.sigma', 'acquisition.ucb.alpha', 'fall.risk.threshold',
                             'fall.kernel.sigma', 'fall.risk.cost', 'priors.max.misfit',
-                            'planner.horizon')
+                            'priors.max.misfit.reproduced', 'planner.horizon')
 
 
 def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=None,

@@ -34,6 +34,9 @@ PARAMETERS = (
     Spec('priors.max.misfit', 0.6, "a damage prior is used only while its median squared error "
          'over the steps seen is below this (units of 0.1 m, 0.1 m, 0.25 rad); 0 = never',
          low=0.0, high=1e6, read_only=True),
+    Spec('priors.max.misfit.reproduced', 2.0, 'the same cap for a damage prior that '
+         'reproduced every step from a standing start (after a fall and its reset); below '
+         'priors.max.misfit = no exception', low=0.0, high=1e6, read_only=True),
     Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
     Spec('detector_timeout', 2.0, "wall time to wait for the detector's verdict on an outcome",
          low=0.001, high=3600.0, unit=' s'),
@@ -60,7 +63,7 @@ PARAMETERS = (
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max.misfit',
-             'planner.horizon')
+             'priors.max.misfit.reproduced', 'planner.horizon')
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
