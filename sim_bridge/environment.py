@@ -30,6 +30,7 @@ class Execution:
     fallen: bool
     sim_time: float
     duty_factors: np.ndarray
+    standing_start: bool = False  # GaitOutcome.standing_start
 
 
 class ObservedHexapod:
@@ -90,4 +91,5 @@ class ObservedHexapod:
             true_start=np.asarray(outcome.start_pose, float),
             true_end=np.asarray(outcome.end_pose, float), fallen=bool(outcome.fallen),
             sim_time=float(outcome.sim_time),
-            duty_factors=np.asarray(outcome.duty_factors, float))
+            duty_factors=np.asarray(outcome.duty_factors, float),
+            standing_start=bool(outcome.standing_start))

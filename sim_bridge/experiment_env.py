@@ -63,7 +63,6 @@ class HexapodEnvironment:
                              solver_iterations=solver_iterations)
         self.observed = ObservedHexapod(self.robot, noise_std=noise_std, seed=seed)
         self.falls = 0
-        self.standing = True
         self.sim_seconds = 0.0
 
     def close(self) -> None:
@@ -79,7 +78,11 @@ class HexapodEnvironment:
         """Standing at the origin, yaw 0, with the damage (start of a replicate)."""
         self.observed.reset()
         self.falls = 0
-        self.standing = True
+
+    @property
+    def standing(self) -> bool:
+        """Whether the next gait starts from a standing start (``Hexapod.standing``)."""
+        return self.robot.standing
 
     def observed_pose(self) -> np.ndarray:
         return self.observed.observed_pose()
@@ -94,7 +97,6 @@ class HexapodEnvironment:
             raise IndexError(f'gait index {index} outside the archive (0..{len(self.params) - 1})')
         start = time.perf_counter()
         execution = self.observed.execute(self.params[index])
-        self.standing = bool(execution.fallen)
         if execution.fallen:
             self.falls += 1
             # Right it where it lies: the observation after the gait stays valid.

@@ -51,6 +51,9 @@ class GaitOutcome:
         duty_factors: (6,) fraction of steps each foot touched the ground (0 if removed).
         fallen: the robot had fallen (see :meth:`Hexapod.is_fallen`) at the end.
         sim_time: total simulated time of the simulator at the end of the gait (s).
+        standing_start: the gait started from the settled standing state (the robot built,
+            reset or righted, no gait since): the start every archive gait was evaluated
+            from; False: chained from where the last gait left the legs.
     """
 
     generic_reward: np.ndarray
@@ -59,6 +62,7 @@ class GaitOutcome:
     duty_factors: np.ndarray
     fallen: bool
     sim_time: float
+    standing_start: bool = False
 
 
 # --------------------------------------------------------------------------- simulator
@@ -169,6 +173,7 @@ class Hexapod:
             self._servo(zero)
             p.stepSimulation(physicsClientId=cid)
         self._standing_state = p.saveState(physicsClientId=cid)
+        self.standing = True  # settled, no gait run since (GaitOutcome.standing_start)
         if any(pose):
             self._place(pose)
 
@@ -252,6 +257,7 @@ class Hexapod:
     def reset(self) -> None:
         """Put the robot back standing at the origin with yaw 0 (sim_time keeps running)."""
         p.restoreState(self._standing_state, physicsClientId=self._client)
+        self.standing = True
 
     def set_damage(self, damage) -> DamageSpec:
         """Apply ``damage`` now: rebuild the body, standing, at the current x, y and yaw."""
@@ -327,6 +333,7 @@ class Hexapod:
                           if callback is not None else 0)
         start_pose = self.pose()
         start_time = self._sim_time
+        standing_start, self.standing = self.standing, False
         n_joints = len(joints)
         # Plain Python lists in the loop: for 18 numbers they beat numpy's call overhead,
         # and this loop runs 720 times per gait.
@@ -371,4 +378,5 @@ class Hexapod:
             duty_factors=np.array(contact_steps, dtype=np.float64) / self.n_steps,
             fallen=self.is_fallen(),
             sim_time=self._sim_time,
+            standing_start=standing_start,
         )

@@ -276,7 +276,8 @@ class SimBridge(Node):
         outcome = conv.BehaviorOutcome(
             behavior_id=behavior_id, generic_reward=result.observed_generic_reward,
             start_pose=result.observed_start, end_pose=result.observed_end,
-            fallen=result.fallen, sim_time=result.sim_time, duty_factors=result.duty_factors)
+            fallen=result.fallen, sim_time=result.sim_time, duty_factors=result.duty_factors,
+            standing_start=result.standing_start)
         # The outcome first: the adapter's next step waits for it, not for the state.
         self.outcome_pub.publish(conv.outcome_to_msg(outcome))
         if result.fallen:

@@ -49,13 +49,18 @@ def test_behavior_without_id_and_with_malformed_id():
 
 @given(st.integers(0, 2**40), st.lists(finite, min_size=3, max_size=3),
        st.lists(finite, min_size=6, max_size=6), st.booleans(), st.floats(0, 1e6),
-       st.lists(unit, min_size=6, max_size=6))
-def test_outcome_round_trip(behavior_id, gr, poses, fallen, sim_time, duty):
+       st.lists(unit, min_size=6, max_size=6), st.sampled_from([None, False, True]))
+def test_outcome_round_trip(behavior_id, gr, poses, fallen, sim_time, duty, standing):
     outcome = conv.BehaviorOutcome(behavior_id, np.array(gr), np.array(poses[:3]),
-                                   np.array(poses[3:]), fallen, sim_time, np.array(duty))
-    back = conv.outcome_from_msg(conv.outcome_to_msg(outcome))
+                                   np.array(poses[3:]), fallen, sim_time, np.array(duty),
+                                   standing_start=standing)
+    msg = conv.outcome_to_msg(outcome)
+    back = conv.outcome_from_msg(msg)
     assert back.behavior_id == behavior_id and back.fallen == fallen
-    assert back.sim_time == sim_time
+    assert back.sim_time == sim_time and back.standing_start is standing
+    # A sender that cannot tell a standing start leaves the field out of data and label.
+    assert len(msg.data) == 18 + (standing is not None)
+    assert msg.layout.dim[0].label.endswith('duty_5,standing_start') == (standing is not None)
     for a, b in ((back.generic_reward, gr), (back.start_pose, poses[:3]),
                  (back.end_pose, poses[3:]), (back.duty_factors, duty)):
         assert np.array_equal(a, np.array(b))
@@ -66,6 +71,10 @@ def test_outcome_malformed():
     short = Float64MultiArray(layout=good.layout, data=list(good.data)[:-1])
     with pytest.raises(conv.MessageError, match='expected 18 values'):
         conv.outcome_from_msg(short)
+    standing = conv.outcome_to_msg(conv.BehaviorOutcome(3, np.zeros(3), np.zeros(3),
+                                                        np.zeros(3), standing_start=True))
+    with pytest.raises(conv.MessageError, match='expected 19 values'):
+        conv.outcome_from_msg(Float64MultiArray(layout=standing.layout, data=list(good.data)))
     with pytest.raises(conv.MessageError, match='layout label'):
         conv.outcome_from_msg(Float64MultiArray(data=list(good.data)))
     nan = Float64MultiArray(layout=good.layout, data=[3.0] + [math.nan] * 17)

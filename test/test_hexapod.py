@@ -112,6 +112,20 @@ def test_tripod_walks_forward(intact_outcome):
     assert math.isclose(intact_outcome.sim_time, 3.0)
 
 
+def test_a_gait_says_whether_it_started_from_the_settled_standing_state():
+    """Built, reset or rebuilt (a damage, a righting): the next gait starts standing, as
+    every archive gait and damage-prior table was evaluated; a gait after a gait does not."""
+    with hx.Hexapod() as robot:
+        first = robot.execute(STRAIGHT)
+        second = robot.execute(STRAIGHT)
+        assert first.standing_start and not second.standing_start and not robot.standing
+        robot.set_damage('remove:middle_right')
+        assert robot.execute(STRAIGHT).standing_start
+        robot.reset()
+        again = robot.execute(STRAIGHT)
+        assert again.standing_start and not robot.execute(STRAIGHT).standing_start
+
+
 @pytest.mark.parametrize('turn', [1, -1])
 def test_turning_gait_turns(turn):
     out = evaluate_gait(tripod_gait(1.0, 0.5, turn=turn))

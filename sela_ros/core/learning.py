@@ -89,12 +89,19 @@ class MissionLogic:
         return self.sela.ask(np.asarray(pose, dtype=float), waypoint=waypoint,
                              next_waypoint_xy=following, map_trusted=not self.adapting)
 
-    def outcome(self, decision, pose, observed_gr, fallen=False, true_pose=None):
-        """Record the outcome of ``decision`` and learn from it when adapting."""
+    def outcome(self, decision, pose, observed_gr, fallen=False, true_pose=None,
+                standing_start=None):
+        """Record the outcome of ``decision`` and learn from it when adapting.
+
+        ``standing_start``: the gait started from the robot standing, settled (as the
+        damage priors' tables ran every gait); None (not said): after a fall and its reset
+        only."""
         observed_gr = np.asarray(observed_gr, dtype=float)
         learnt = np.zeros_like(observed_gr) if fallen and self.reset_on_fall else observed_gr
         self.sela.tell_fall(decision.index, bool(fallen))
-        self.last = (decision.index, learnt, self.standing_next)
+        if standing_start is None:
+            standing_start = self.standing_next
+        self.last = (decision.index, learnt, bool(standing_start))
         if self.adapting:
             self.sela.tell(*self.last)
         self.standing_next = bool(fallen) and self.reset_on_fall

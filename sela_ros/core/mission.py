@@ -86,8 +86,10 @@ def run_mission(env, archive, goal, planner, lookahead=0.5, sela_config=None,
         elif isinstance(command, SendGait):
             execution = env.execute(archive.params[command.index])
             observed = execution.observed_generic_reward
+            standing = getattr(execution, 'standing_start', None)  # None: not said
             events.append(OutcomeReceived(command.behavior_id, observed, execution.observed_end,
-                                          execution.fallen, true_pose=execution.true_end))
+                                          execution.fallen, true_pose=execution.true_end,
+                                          standing_start=standing))
             verdict = detector.observe(command.predicted_gr, observed, command.sigma)
             events.append(VerdictReceived(command.behavior_id, verdict.fire, verdict.error,
                                           detector.config.threshold))

@@ -188,7 +188,8 @@ class MissionStepper:
                 and self.steps < self.config.max_steps and not self.reset_needed):
             out.append(self._ask_plan(self.steps + 1, self.pose, now))
         p.record = self.logic.outcome(p.decision, p.pose, event.generic_reward,
-                                      fallen=event.fallen, true_pose=event.true_pose)
+                                      fallen=event.fallen, true_pose=event.true_pose,
+                                      standing_start=event.standing_start)
         if event.fallen:
             self.failed_steps += 1
             out.append(Report(Level.ERROR, f'step {self.steps} failed: the robot fell or '

@@ -50,6 +50,8 @@ class OutcomeReceived:
     fallen: bool = False
     stamp: float = None  # the simulator's time at the end of the gait
     true_pose: tuple = None  # in process only: what really happened (for the record)
+    # The gait started standing, settled (BehaviorOutcome.standing_start); None: not said.
+    standing_start: bool | None = None
 
 
 @dataclass(frozen=True)

@@ -40,8 +40,10 @@ from sela_ros.core.validation import finite_array
 BEHAVIOR_ID_PREFIX = 'behavior_id='
 OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
                   'end_x', 'end_y', 'end_yaw', 'fallen', 'sim_time',
-                  'duty_0', 'duty_1', 'duty_2', 'duty_3', 'duty_4', 'duty_5')
+                  'duty_0', 'duty_1', 'duty_2', 'duty_3', 'duty_4', 'duty_5', 'standing_start')
 OUTCOME_LABEL = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS)
+#: The outcome without ``standing_start`` (a driver that cannot tell) is read too.
+OUTCOME_LABEL_WITHOUT_STANDING = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS[:-1])
 PREDICTION_LABEL = 'prediction:behavior_id,dx,dy,dyaw,sigma'
 VERDICT_LABEL = 'verdict:behavior_id,fire,judged,error,mean_error,threshold'
 
@@ -61,6 +63,9 @@ class BehaviorOutcome:
     fallen: bool = False
     sim_time: float = 0.0
     duty_factors: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    # The gait started from the robot standing still, settled (spawned, reset or righted):
+    # how the archive's gaits were evaluated. None: the sender did not say.
+    standing_start: bool | None = None
 
 
 # --- small helpers -------------------------------------------------------------------------
@@ -141,25 +146,32 @@ def outcome_to_msg(outcome):
               *np.asarray(outcome.start_pose, float), *np.asarray(outcome.end_pose, float),
               1.0 if outcome.fallen else 0.0, float(outcome.sim_time),
               *np.asarray(outcome.duty_factors, float)]
+    label = OUTCOME_LABEL_WITHOUT_STANDING
+    if outcome.standing_start is not None:
+        values.append(1.0 if outcome.standing_start else 0.0)
+        label = OUTCOME_LABEL
     msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label=OUTCOME_LABEL, size=len(values),
+    msg.layout.dim = [MultiArrayDimension(label=label, size=len(values),
                                           stride=len(values))]
     msg.data = values
     return msg
 
 
 def outcome_from_msg(msg):
-    if not msg.layout.dim or msg.layout.dim[0].label != OUTCOME_LABEL:
-        got = msg.layout.dim[0].label if msg.layout.dim else '(no layout)'
-        raise MessageError(f'behavior_outcome: layout label {got!r} is not {OUTCOME_LABEL!r}')
-    values = _finite_array(msg.data, 'behavior_outcome', len(OUTCOME_FIELDS))
+    label = msg.layout.dim[0].label if msg.layout.dim else '(no layout)'
+    if label not in (OUTCOME_LABEL, OUTCOME_LABEL_WITHOUT_STANDING):
+        raise MessageError(f'behavior_outcome: layout label {label!r} is not {OUTCOME_LABEL!r}')
+    values = _finite_array(msg.data, 'behavior_outcome',
+                           len(OUTCOME_FIELDS) - (label != OUTCOME_LABEL))
     behavior_id = values[0]
     if behavior_id < 0 or behavior_id != int(behavior_id):
         raise MessageError(f'behavior_outcome: id {behavior_id} is not a non-negative integer')
     return BehaviorOutcome(behavior_id=int(behavior_id), generic_reward=values[1:4].copy(),
                            start_pose=values[4:7].copy(), end_pose=values[7:10].copy(),
                            fallen=bool(values[10] >= 0.5), sim_time=float(values[11]),
-                           duty_factors=values[12:18].copy())
+                           duty_factors=values[12:18].copy(),
+                           standing_start=bool(values[18] >= 0.5) if len(values) > 18
+                           else None)
 
 
 def _labelled(label, values):
@@ -183,7 +195,7 @@ def outcome_event(msg):
     """The mission stepper's event for an outcome message."""
     o = outcome_from_msg(msg)
     return OutcomeReceived(o.behavior_id, tuple(o.generic_reward), tuple(o.end_pose),
-                           o.fallen, o.sim_time)
+                           o.fallen, o.sim_time, standing_start=o.standing_start)
 
 
 def verdict_event(msg):
