@@ -114,6 +114,10 @@ def test_damaged_mission_reaches_goal_with_the_in_process_decisions(graph):
     assert sorted(ids) == sorted(watcher.commands)
     assert len(set(watcher.commands)) == len(watcher.commands) == len(watcher.steps)
     assert len(watcher.rewards) == len(watcher.steps)
+    # The simulator says which gaits started standing: the first, and any after a fall and
+    # the adapter's reset; none other.
+    mine = [o for o in watcher.outcomes if o.behavior_id in set(watcher.commands)]
+    assert [o.standing_start for o in mine] == [True] + [o.fallen for o in mine[:-1]]
     # The detector saw the damage and adaptation began.
     assert any(level == DiagnosticStatus.ERROR for level, _ in watcher.verdicts)
     assert any(s.adapting for s in watcher.steps)
