@@ -9,6 +9,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from sela_ros.core.damage_detection import Verdict
 from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import grid_conversions as grids
 
 unit = st.floats(0.0, 1.0, allow_nan=False)
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
@@ -124,8 +125,8 @@ def test_time_round_trip(seconds):
 def test_occupancy_grid_round_trip(h, w, data):
     occ = np.array(data.draw(st.lists(st.booleans(), min_size=h * w, max_size=h * w)))
     occ = occ.reshape(h, w)
-    back, res, origin = conv.occupancy_grid_from_msg(
-        conv.occupancy_grid_to_msg(occ, 0.05, (-1.0, 2.0)))
+    back, res, origin = grids.occupancy_grid_from_msg(
+        grids.occupancy_grid_to_msg(occ, 0.05, (-1.0, 2.0)))
     assert np.array_equal(back, occ) and res == 0.05 and np.array_equal(origin, [-1.0, 2.0])
 
 

@@ -13,6 +13,7 @@ from rcl_interfaces.srv import SetParameters
 
 from sela_ros.core.maps import load_map_file
 from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes.interface import LATCHED_QOS, STATE_QOS
 
 from ros_graph import Client, NodeProcesses
@@ -43,7 +44,7 @@ class PlannerWatch:
                 and text in s.message]
 
     def map_grid(self):
-        return conv.occupancy_grid_from_msg(self.maps[-1])
+        return grids.occupancy_grid_from_msg(self.maps[-1])
 
     def path(self, start, goal):
         """The full path the planner publishes for a plan from ``start`` to ``goal``."""
@@ -77,7 +78,7 @@ def _wall_map(frame_id='map'):
     values = np.zeros((30, 40), dtype=np.int8)
     values[:20, 15:17] = 100
     values[25:, :5] = -1  # unknown: occupied by default
-    msg = conv.occupancy_grid_to_msg(values > 0, 0.1, (-1.0, -1.0), frame_id=frame_id)
+    msg = grids.occupancy_grid_to_msg(values > 0, 0.1, (-1.0, -1.0), frame_id=frame_id)
     msg.data = values.reshape(-1).tolist()
     return msg
 

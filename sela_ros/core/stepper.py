@@ -114,15 +114,12 @@ class MissionStepper:
         return out
 
     def _on_goal(self, event, now):
-        return self._take_goals([event.goal])
+        return take_goals(self, [event.goal])
 
     def _on_goals(self, event, now):
         if not event.goals:
             return [Report(Level.ERROR, 'goal path rejected: it has no poses')]
-        return self._take_goals(list(event.goals))
-
-    def _take_goals(self, goals):
-        return take_goals(self, goals)
+        return take_goals(self, list(event.goals))
 
     def _on_pose(self, event, now):
         pose = np.asarray(event.pose, dtype=float)

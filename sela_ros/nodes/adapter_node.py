@@ -24,6 +24,7 @@ from sela_ros.core.planning import OccupancyGrid
 from sela_ros.nodes import adapter_params as params
 from sela_ros.nodes import adapter_support, markers
 from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
@@ -102,7 +103,7 @@ class SelaAdapter(Node):
     @guard
     def map_callback(self, msg):
         try:
-            self.map = OccupancyGrid(*conv.occupancy_grid_from_msg(msg))
+            self.map = OccupancyGrid(*grids.occupancy_grid_from_msg(msg))
         except (conv.MessageError, ValueError) as exc:
             self.get_logger().error(f'ignored map: {exc}')
 

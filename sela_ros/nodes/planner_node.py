@@ -25,6 +25,7 @@ from rclpy.node import Node
 from sela_ros.core.maps import MapError, grid_from_description, grid_from_ros, load_map_file
 from sela_ros.core.planning import GridPlanner, PlanningError, next_waypoint
 from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
@@ -142,7 +143,7 @@ class PlannerNode(Node):
         """Plan on ``grid`` from now on and publish it; the current goal's field is built."""
         self.grid = grid
         self.planner = GridPlanner(grid, inflation=float(self.inflation))
-        self.map_pub.publish(conv.occupancy_grid_to_msg(
+        self.map_pub.publish(grids.occupancy_grid_to_msg(
             grid.occupied, grid.resolution, grid.origin, frame_id=self.frame_id))
         message = (f'map from {source}: {grid.width}x{grid.height} cells of '
                    f'{grid.resolution} m, bounds {grid.bounds_text()}, lookahead '
@@ -162,7 +163,7 @@ class PlannerNode(Node):
     @guard
     def map_callback(self, msg):
         try:
-            values, resolution, origin = conv.occupancy_values_from_msg(msg)
+            values, resolution, origin = grids.occupancy_values_from_msg(msg)
             grid = grid_from_ros(values, resolution, origin, self.unknown_is_occupied)
         except (conv.MessageError, MapError) as exc:
             self._report(DiagnosticStatus.ERROR, f'map on topic rejected: {exc}; keeping '
