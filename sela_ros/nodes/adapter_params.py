@@ -35,7 +35,7 @@ PARAMETERS = (
          'over the steps seen is below this (units of 0.1 m, 0.1 m, 0.25 rad); 0 = never',
          low=0.0, high=1e6, read_only=True),
     Spec('priors.max.misfit.reproduced', 2.0, 'the same cap for a damage prior that '
-         'reproduced every step from a standing start (after a fall and its reset); below '
+         'reproduced every step from a standing start (spawned, reset or righted); below '
          'priors.max.misfit = no exception', low=0.0, high=1e6, read_only=True),
     Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
     Spec('detector_timeout', 2.0, "wall time to wait for the detector's verdict on an outcome",
