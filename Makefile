@@ -63,7 +63,8 @@ map8d: venv
 	@echo "building in the background; progress: $${MAPBUILD_DIR:-/work/mapbuild}/build.log"
 
 # SELA's damage priors for the shipped 8-D map: every gait run on each foreseen damage
-# (14-21 minutes of one core per damage; tables already in ~/.cache/sela_ros/oracle are free).
+# (14-21 minutes of one core per damage), then the fast gaits the fall model fears run after
+# others (5-7 minutes per front or rear leg); what is in ~/.cache/sela_ros/oracle is free.
 PRIORS_DAMAGES ?= single-legs
 WORKERS ?= 2
 priors: venv

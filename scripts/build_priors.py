@@ -7,6 +7,13 @@ beside the archive as ``<archive>_priors.npz`` (docs/archive.md, "Damage priors"
 
 A damage whose table is not cached costs about 0.1 s of one core per gait (14-21 minutes of
 one core per damage for the 8-D map); the tables already cached cost nothing.
+
+Then the gaits the fall model fears and a robot would want (fast: 0.3 m or more from a
+standing start, the table sees them standing, the support model gives them a risk above
+0.1) are run right after ``--chained-repeats`` random walking gaits each (0.2 m or more,
+standing), to learn which of them tip the robot over when chained (about 0.3 s of one core
+per pair: 5-7 minutes per front or rear leg, none for a middle leg, whose gaits the model does
+not fear; cached too). ``--chained-repeats 0`` leaves them out.
 """
 import argparse
 import sys
@@ -18,8 +25,26 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sela_ros.core.archive import load_archive, resolve_archive_path  # noqa: E402
 from sela_ros.core.damage_priors import DamagePriors, params_checksum, priors_path  # noqa: E402
+from sela_ros.core.fall_risk import FallRisk  # noqa: E402
 from sela_ros.experiments.campaign import damage_list  # noqa: E402
-from sim_bridge.experiment_env import oracle_table  # noqa: E402
+from sim_bridge.experiment_env import chained_runs, oracle_table  # noqa: E402
+
+#: Which gaits are run chained (module docstring).
+CHAINED_MIN_DISTANCE = 0.3
+CHAINED_MIN_RISK = 0.1
+PREDECESSOR_MIN_DISTANCE = 0.2
+
+
+def chained_choice(archive, gr, fallen, repeats, rng):
+    """``(gaits, predecessors (len(gaits), repeats))`` to run chained on one damage."""
+    model = FallRisk(archive.normalised_descriptors(), None, stability=archive.stability)
+    risk = model.untried_risk(model.table_support(fallen))
+    distance = np.hypot(gr[:, 0], gr[:, 1])
+    gaits = np.flatnonzero(~fallen & (distance >= CHAINED_MIN_DISTANCE)
+                           & (risk > CHAINED_MIN_RISK))
+    walking = np.flatnonzero(~fallen & (distance >= PREDECESSOR_MIN_DISTANCE))
+    before = np.array([rng.choice(walking, repeats) for _ in gaits], dtype=int)
+    return gaits, before.reshape(len(gaits), repeats)
 
 
 def main(argv=None):
@@ -28,13 +53,19 @@ def main(argv=None):
     parser.add_argument('--damages', type=damage_list, default=damage_list('single-legs'),
                         help="';'-separated damage specs or groups (default single-legs)")
     parser.add_argument('--workers', type=int, default=1)
+    parser.add_argument('--chained-repeats', type=int, default=4,
+                        help='predecessors of each gait run chained (0: none)')
+    parser.add_argument('--seed', type=int, default=1,
+                        help="of the predecessors (each damage's drawn from it)")
     parser.add_argument('--out', default=None,
                         help='where to write (default: <archive>_priors.npz beside it)')
     args = parser.parse_args(argv)
     path = resolve_archive_path(args.archive)
     archive = load_archive(path)
     settings = archive.simulator_settings
-    grs, falls = [], []
+    if args.chained_repeats and archive.stability is None:
+        parser.error(f'{path} has no support feature (a 2-D map): use --chained-repeats 0')
+    grs, falls, runs, chained_falls = [], [], [], []
     for damage in args.damages:
         print(f'{damage}: evaluating {len(archive)} gaits (or reading the cached table)',
               flush=True)
@@ -44,8 +75,23 @@ def main(argv=None):
         grs.append(gr)
         falls.append(fallen)
         print(f'{damage}: {int(fallen.sum())} of {len(fallen)} gaits fall', flush=True)
+        if not args.chained_repeats:
+            continue
+        gaits, before = chained_choice(archive, gr, fallen, args.chained_repeats,
+                                       np.random.default_rng(args.seed))
+        print(f'{damage}: {len(gaits)} fast gaits the fall model fears, each run after '
+              f'{args.chained_repeats} others (or reading the cache)', flush=True)
+        n, f = chained_runs(archive.params, damage, gaits, before, workers=args.workers,
+                            dt=settings['dt'], gait_duration=settings['gait_duration'],
+                            solver_iterations=settings['solver_iterations'])
+        runs.append(np.zeros(len(archive), int))
+        chained_falls.append(np.zeros(len(archive), int))
+        runs[-1][gaits], chained_falls[-1][gaits] = n, f
+        print(f'{damage}: {int(f.sum())} falls in {int(n.sum())} chained runs; '
+              f'{int((f > 0).sum())} of the {len(gaits)} gaits fell at least once', flush=True)
+    chained = (np.array(runs), np.array(chained_falls)) if args.chained_repeats else ()
     priors = DamagePriors(tuple(args.damages), np.array(grs), np.array(falls),
-                          params_checksum(archive.params))
+                          params_checksum(archive.params), *chained)
     out = Path(args.out) if args.out else priors_path(path)
     priors.save(out)
     print(f'wrote {out}: {len(priors)} damage priors for {len(archive)} gaits')

@@ -183,3 +183,59 @@ def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
         handle, generic_reward=gr, fallen=fallen,
         damage=np.array(parse_damage(damage).canonical())))
     return gr, fallen
+
+
+# --------------------------------------------------------------------------- chained runs
+
+
+def chained_runs(params, damage, gaits, predecessors, workers=1, dt=1.0 / 240.0,
+                 gait_duration=3.0, solver_iterations=50, cache_dir=None):
+    """Each of ``gaits`` run right after each of its ``predecessors`` (``(len(gaits), R)``
+    archive indices), every pair from a standing start: ``(runs, falls)`` per gait, the
+    pairs whose predecessor fell left out. What a table from standing starts cannot say:
+    whether a gait tips the robot over when it starts where another gait left the legs
+    (``scripts/build_priors.py``; the fall model uses it, ``FallRisk.risk``)."""
+    gaits = np.asarray(gaits, dtype=int).reshape(-1)
+    if not gaits.size:  # a damage whose gaits the fall model does not fear (a middle leg)
+        return np.zeros(0, int), np.zeros(0, int)
+    predecessors = np.asarray(predecessors, dtype=int).reshape(len(gaits), -1)
+    spec = parse_damage(damage).canonical()
+    # Cached beside the oracle tables, keyed by everything the runs depend on.
+    key = hashlib.sha256(b'|'.join([oracle_cache_path(params, damage, cache_dir, dt,
+                                                      gait_duration, solver_iterations
+                                                      ).stem.encode(),
+                                    gaits.tobytes(), predecessors.tobytes()])).hexdigest()
+    path = Path(cache_dir or default_cache_dir()) / f'chained_{key[:24]}.npz'
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                runs, falls = npz['runs'], npz['falls']
+            if runs.shape == falls.shape == gaits.shape:
+                return runs.astype(int), falls.astype(int)
+        except Exception:  # corrupt or truncated: run them again below
+            pass
+    chunks = np.array_split(np.arange(len(gaits)), max(1, min(len(gaits), 4 * workers)))
+    jobs = [(np.asarray(params, float)[gaits[c]], np.asarray(params, float)[predecessors[c]],
+             spec, dt, gait_duration, solver_iterations) for c in chunks if len(c)]
+    if workers <= 1 or len(jobs) <= 1:
+        rows = [_chained_chunk(j) for j in jobs]
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            rows = list(pool.map(_chained_chunk, jobs))
+    out = np.concatenate(rows) if rows else np.zeros((0, 2), int)
+    atomic_write(path, lambda handle: np.savez(handle, runs=out[:, 0], falls=out[:, 1]))
+    return out[:, 0], out[:, 1]
+
+
+def _chained_chunk(job):
+    gaits, predecessors, damage, dt, gait_duration, solver_iterations = job
+    out = np.zeros((len(gaits), 2), int)
+    with Hexapod(dt=dt, gait_duration=gait_duration, damage=damage,
+                 solver_iterations=solver_iterations) as robot:
+        for i, (gait, before) in enumerate(zip(gaits, predecessors)):
+            for first in before:
+                robot.reset()
+                if robot.execute(first).fallen:
+                    continue
+                out[i] += (1, int(robot.execute(gait).fallen))
+    return out

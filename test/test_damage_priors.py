@@ -224,6 +224,54 @@ def test_files_round_trip_and_bad_files_are_named(tmp_path):
         DamagePriors(('a',), np.full((1, M, 3), np.nan), np.zeros((1, M), bool), 'x')
 
 
+def test_chained_runs_round_trip_and_are_checked(tmp_path):
+    """A table's chained runs (the gaits run right after others: how often, how often they
+    fell) travel with it; a file without them has none; nonsense counts are refused."""
+    _, _, priors, params = world()
+    runs, falls = np.zeros((2, M), int), np.zeros((2, M), int)
+    runs[0, [5, 9]], falls[0, [5, 9]] = 4, [0, 3]
+    chained = DamagePriors(priors.names, priors.generic_reward, priors.fallen,
+                           priors.archive_checksum, runs, falls)
+    gaits, n, f = chained.chained(0)
+    assert gaits.tolist() == [5, 9] and n.tolist() == [4, 4] and f.tolist() == [0, 3]
+    assert chained.chained(1)[0].size == 0 and priors.chained(0)[0].size == 0
+    path = tmp_path / 'p.npz'
+    chained.save(path)
+    back = load_damage_priors(path, params)
+    assert np.array_equal(back.chained_runs, runs) and np.array_equal(back.chained_falls, falls)
+    assert back.without('remove:front_left').chained(0)[0].size == 0  # the rear left's: none
+    assert back.without('remove:rear_left').chained(0)[0].tolist() == [5, 9]
+    priors.save(path)  # written without them, as files from before
+    assert load_damage_priors(path, params).chained(0)[0].size == 0
+    for bad in (falls + runs + 1, -runs, runs[:, :5]):
+        with pytest.raises(DamagePriorError, match='chained runs'):
+            DamagePriors(priors.names, priors.generic_reward, priors.fallen,
+                         priors.archive_checksum, runs, bad)
+
+
+def test_sela_takes_the_chained_runs_of_the_table_it_walks_on():
+    """Under a table with chained runs, a gait that never fell chained is less feared than
+    the support model alone says, and one that always fell more; the intact map has none."""
+    candidates, intact, priors, _ = world()
+    stability = np.linspace(-1.0, 1.0, M)
+    runs, falls = np.zeros((2, M), int), np.zeros((2, M), int)
+    safe, fragile = 10, 11  # little support: the support model fears both alike
+    runs[0, [safe, fragile]], falls[0, [safe, fragile]] = 4, [0, 4]
+    chained = DamagePriors(priors.names, priors.generic_reward, priors.fallen,
+                           priors.archive_checksum, runs, falls)
+    sela = SELA(candidates, intact, SE2Motion(), goal=(1.0, 0.0), stability=stability,
+                priors=chained)
+    table = chained.select(intact, [3], intact[[3]] * 0.5)
+    assert table.name == 'remove:front_left'
+    _, _, fall_prior = sela._posterior(table)
+    with_runs = sela.fall_risk.risk(*fall_prior)
+    without = sela.fall_risk.risk(*fall_prior[:2])
+    assert with_runs[safe] < 0.5 * without[safe] and with_runs[fragile] > 0.7
+    others = np.setdiff1d(np.arange(M), [safe, fragile])
+    assert np.array_equal(with_runs[others], without[others])
+    assert sela._posterior(chained.select(intact, [], np.zeros((0, 3))))[2] == ()
+
+
 def test_experiments_use_the_tables_beside_the_archive_and_refuse_other_cells(tmp_path):
     from test_hexapod_experiment import tiny_archive
 

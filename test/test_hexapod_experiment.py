@@ -12,7 +12,7 @@ from sela_ros.core.archive import Archive, make_metadata
 from sela_ros.experiments.cli import main
 from sim_bridge import experiment_env
 from sim_bridge.evaluation import evaluate_gait
-from sim_bridge.experiment_env import HexapodEnvironment, oracle_table
+from sim_bridge.experiment_env import HexapodEnvironment, chained_runs, oracle_table
 from sim_bridge.settings import simulator_settings
 
 REPO = Path(__file__).resolve().parents[1]
@@ -171,3 +171,24 @@ def test_environment_walks_without_reset_and_checks_index():
             env.execute(2)
         env.reset()
         assert env.standing
+
+
+def test_chained_runs_count_each_pair_and_are_cached(tmp_path, monkeypatch):
+    """Each gait after each of its predecessors, from a standing start per pair; a pair whose
+    predecessor fell does not count; the second call reads the cache."""
+    params = np.random.default_rng(3).random((3, 36))
+    runs, falls = chained_runs(params, 'remove:rear_left', [0, 1], [[1, 2], [2, 2]],
+                               cache_dir=tmp_path)
+    assert runs.shape == falls.shape == (2,) and np.all(falls <= runs) and np.all(runs <= 2)
+    assert runs[1] in (0, 2)  # the same predecessor twice: both count or neither
+    assert [len(a) for a in chained_runs(params, 'remove:rear_left', [], [])] == [0, 0]
+
+    def boom(job):
+        raise AssertionError('ran again instead of reading the cache')
+
+    monkeypatch.setattr(experiment_env, '_chained_chunk', boom)
+    again = chained_runs(params, 'remove:rear_left', [0, 1], [[1, 2], [2, 2]],
+                         cache_dir=tmp_path)
+    assert np.array_equal(again[0], runs) and np.array_equal(again[1], falls)
+    with pytest.raises(AssertionError, match='ran again'):  # other pairs: not cached
+        chained_runs(params, 'remove:rear_left', [0], [[2, 1]], cache_dir=tmp_path)

@@ -94,12 +94,17 @@ class DamagePriors:
         generic_reward: ``(K, M, k)`` each gait's generic reward from a standing start.
         fallen: ``(K, M)`` whether it tipped the robot over.
         archive_checksum: :func:`params_checksum` of the archive the tables are for.
+        chained_runs, chained_falls: ``(K, M)`` how often each gait was run right after
+            another one (the fast gaits the fall model fears: ``make priors``) and how often
+            it fell then; None: none was.
     """
 
     names: tuple
     generic_reward: np.ndarray
     fallen: np.ndarray
     archive_checksum: str
+    chained_runs: np.ndarray | None = None
+    chained_falls: np.ndarray | None = None
 
     def __post_init__(self):
         gr, fallen = np.asarray(self.generic_reward), np.asarray(self.fallen)
@@ -107,6 +112,19 @@ class DamagePriors:
         if gr.ndim != 3 or gr.shape[0] != k or fallen.shape != gr.shape[:2]:
             raise DamagePriorError(f'damage priors: {k} names, generic_reward {gr.shape} and '
                                    f'fallen {fallen.shape} do not match')
+        runs = np.zeros(fallen.shape, int) if self.chained_runs is None \
+            else np.asarray(self.chained_runs)
+        falls = np.zeros(fallen.shape, int) if self.chained_falls is None \
+            else np.asarray(self.chained_falls)
+        if runs.shape != fallen.shape or falls.shape != fallen.shape or \
+                np.any(runs < 0) or np.any(falls < 0) or np.any(falls > runs):
+            raise DamagePriorError(f'damage priors: chained runs {runs.shape} and falls '
+                                   f'{falls.shape} must be counts of shape {fallen.shape}, '
+                                   'no more falls than runs')
+        # Per table, the gaits run chained with their runs and falls (FallRisk.risk).
+        object.__setattr__(self, '_chained', [
+            (np.flatnonzero(r), r[r > 0].astype(float), f[r > 0].astype(float))
+            for r, f in zip(runs, falls)])
         if not np.all(np.isfinite(gr)):
             raise DamagePriorError('damage priors: generic_reward has NaN or inf')
         if len(set(self.names)) != k:
@@ -115,6 +133,10 @@ class DamagePriors:
     def __len__(self):
         return len(self.names)
 
+    def chained(self, index: int):
+        """``(gaits, runs, falls)`` of table ``index``'s chained runs (empty: none)."""
+        return self._chained[index]
+
     @property
     def num_candidates(self) -> int:
         return self.generic_reward.shape[1]
@@ -122,8 +144,10 @@ class DamagePriors:
     def without(self, name: str) -> DamagePriors:
         """The same tables less ``name`` (to measure a damage as if nobody foresaw it)."""
         keep = [i for i, n in enumerate(self.names) if n != name]
+        chained = [None if a is None else np.asarray(a)[keep]
+                   for a in (self.chained_runs, self.chained_falls)]
         return DamagePriors(tuple(self.names[i] for i in keep), self.generic_reward[keep],
-                            self.fallen[keep], self.archive_checksum)
+                            self.fallen[keep], self.archive_checksum, *chained)
 
     def check_archive(self, params) -> None:
         """Raise :class:`DamagePriorError` unless the tables are for these gaits."""
@@ -201,12 +225,15 @@ class DamagePriors:
         """Write the tables (``.npz``; atomic: a reader never sees half a file)."""
         path = Path(path)
         tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
+        chained = {} if self.chained_runs is None else {
+            'chained_runs': np.asarray(self.chained_runs).astype(np.uint16),
+            'chained_falls': np.asarray(self.chained_falls).astype(np.uint16)}
         with open(tmp, 'wb') as handle:
             np.savez_compressed(handle, names=np.array(self.names),
                                 generic_reward=self.generic_reward.astype(np.float32),
                                 fallen=self.fallen.astype(bool),
                                 archive_checksum=np.array(self.archive_checksum),
-                                format_version=np.array(FORMAT_VERSION))
+                                format_version=np.array(FORMAT_VERSION), **chained)
         os.replace(tmp, path)
 
 
@@ -222,9 +249,13 @@ def load_damage_priors(path, params=None) -> DamagePriors:
             if version != FORMAT_VERSION:
                 raise DamagePriorError(f'damage priors {path}: format {version}, this '
                                        f'version reads {FORMAT_VERSION}')
+            # Chained runs are optional (files from before them have none).
+            chained = [npz[key].astype(int) if key in npz.files else None
+                       for key in ('chained_runs', 'chained_falls')]
             priors = DamagePriors(tuple(str(n) for n in npz['names']),
                                   npz['generic_reward'].astype(float),
-                                  npz['fallen'].astype(bool), str(npz['archive_checksum']))
+                                  npz['fallen'].astype(bool), str(npz['archive_checksum']),
+                                  *chained)
     except DamagePriorError:
         raise
     except Exception as exc:  # truncated, not an npz, missing arrays

@@ -66,6 +66,9 @@ BETA_PRIOR = (1.5, 1.0)
 #: damage (:meth:`FallRisk.table_support`): its falls are from a standing start, not chained
 #: as on the robot, so they set where the model starts, not how sure it is (docs/archive.md).
 TABLE_EVIDENCE = 600
+#: What the support model's risk of a gait counts for, in chained runs, against the chained
+#: runs of that gait a damage prior holds (:meth:`FallRisk.risk`, ``chained``).
+CHAINED_PRIOR_RUNS = 1.0
 _THETA_GRID = np.linspace(-9.0, 5.0, 57)
 _BETA_GRID = np.linspace(0.0, 5.0, 41)
 _Z_GRID = np.linspace(-4.0, 4.0, 161)
@@ -200,16 +203,24 @@ class FallRisk:
         """The robot's fall rate so far, the risk of a gait far from every observed one."""
         return self.falls / (len(self._gp.indices) + SAFE_PSEUDO_STEPS)
 
-    def risk(self, prior_falls=None, support=None) -> np.ndarray:
+    def risk(self, prior_falls=None, support=None, chained=None) -> np.ndarray:
         """Predicted risk of falling of every gait, ``(M,)`` in ``[0, 1]``.
 
         ``prior_falls``: ``(M,)`` what a damage prior says of each gait (1: it falls from a
         standing start on that damage); where nothing near a gait was observed, its risk is
         at least that (measured against the table's own rates: docs/archive.md).
         ``support``: the logistic model's prior on that damage (:meth:`table_support`).
+        ``chained``: ``(gaits, runs, falls)``, gaits that damage prior ran chained after
+        others, how often and how often they fell: their untried risk is the support
+        model's, counted as :data:`CHAINED_PRIOR_RUNS` runs, pooled with those.
         """
         mu, _ = self._gp.query_columns()
         untried = self.untried_risk(support)
+        if chained is not None and len(chained[0]):
+            gaits, runs, falls = chained
+            untried = untried.copy()
+            untried[gaits] = ((CHAINED_PRIOR_RUNS * untried[gaits] + falls)
+                              / (CHAINED_PRIOR_RUNS + runs))
         if prior_falls is not None:
             untried = np.maximum(untried, prior_falls)
         return np.clip(mu[0] + untried * (1.0 - mu[1]), 0.0, 1.0)

@@ -196,21 +196,23 @@ class SELA:
                                   self.config.priors_max_misfit_reproduced)
 
     def _posterior(self, selection):
-        """``(mu (k, M), var (M,), prior falls (M,) or None, fall model's support prior or
-        None)`` under ``selection``."""
+        """``(mu (k, M), var (M,), fall prior)`` under ``selection``: the fall prior is the
+        arguments of :meth:`FallRisk.risk` that the selected damage prior gives (its falls,
+        its support prior, its chained runs), ``()`` for the intact map."""
         mu_t, var = self._gp.query_columns()
         if selection.index is None:
-            return mu_t, var, None, None
+            return mu_t, var, ()
         table = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
         fallen = self.priors.fallen[selection.index]
         if selection.index not in self._support:
             self._support[selection.index] = self._fall.table_support(fallen)
-        return (self._gp.mean_columns_with_prior(table), var, fallen.astype(float),
-                self._support[selection.index])
+        return (self._gp.mean_columns_with_prior(table), var,
+                (fallen.astype(float), self._support[selection.index],
+                 self.priors.chained(selection.index)))
 
     def predict(self):
         """Posterior over the archive: ``(mu (M, k), sigma (M,))`` (under the prior in use)."""
-        mu_t, var, _, _ = self._posterior(self.select_prior())
+        mu_t, var, _ = self._posterior(self.select_prior())
         return mu_t.T, np.sqrt(var)
 
     def ask(self, pose, waypoint=None, next_waypoint_xy=None, map_trusted=False) -> Decision:
@@ -243,14 +245,14 @@ class SELA:
                 and not map_trusted:
             return self._hedged_choice(pose, waypoint, path)
         selection = self.select_prior()
-        mu_t, var, prior_falls, support = self._posterior(selection)
+        mu_t, var, fall_prior = self._posterior(selection)
         x, y = self.motion.predict_xy_columns(pose, mu_t)
         reward = -np.hypot(x - waypoint[0], y - waypoint[1])
         sigma = np.sqrt(var)
         scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
-        risk = self._fall.risk(prior_falls, support)
+        risk = self._fall.risk(*fall_prior)
         fall_aware = bool(self._fall.falls or self._prior_fall_rate is not None
-                          or self._stability is not None or prior_falls is not None)
+                          or self._stability is not None or fall_prior)
         if fall_aware:
             if self.config.fall_risk_cost:
                 scores = scores - self.config.fall_risk_cost * risk
