@@ -81,7 +81,7 @@ def test_a_table_that_reproduced_the_standing_start_is_kept_through_chained_surp
     standing = [True, False, False]
     assert priors.select(intact, idx, seen).name == 'intact'
     kept = priors.select(intact, idx, seen, standing=standing)
-    assert kept.name == 'remove:front_left' and 1.0 < kept.misfit < 2.0
+    assert kept.name == 'remove:front_left' and 1.0 < kept.misfit < 2.0 and kept.reproduced
     assert priors.select(intact, idx, seen, standing=standing,
                          max_misfit_reproduced=1.0).name == 'intact'
     assert priors.select(intact, idx, seen, max_misfit=0.0, standing=standing).name == 'intact'
@@ -250,8 +250,10 @@ def test_chained_runs_round_trip_and_are_checked(tmp_path):
 
 
 def test_sela_takes_the_chained_runs_of_the_table_it_walks_on():
-    """Under a table with chained runs, a gait that never fell chained is less feared than
-    the support model alone says, and one that always fell more; the intact map has none."""
+    """Under a table with chained runs that reproduced the standing start, a gait that
+    never fell chained is less feared than the support model alone says, and one that always
+    fell more; a table that did not reproduce it (another damage, maybe) and the intact map
+    give none."""
     candidates, intact, priors, _ = world()
     stability = np.linspace(-1.0, 1.0, M)
     runs, falls = np.zeros((2, M), int), np.zeros((2, M), int)
@@ -261,8 +263,11 @@ def test_sela_takes_the_chained_runs_of_the_table_it_walks_on():
                            priors.archive_checksum, runs, falls)
     sela = SELA(candidates, intact, SE2Motion(), goal=(1.0, 0.0), stability=stability,
                 priors=chained)
-    table = chained.select(intact, [3], intact[[3]] * 0.5)
-    assert table.name == 'remove:front_left'
+    table = chained.select(intact, [3], intact[[3]] * 0.5, standing=[True])
+    assert table.name == 'remove:front_left' and table.reproduced
+    unsure = chained.select(intact, [3], intact[[3]] * 0.5)
+    assert unsure.name == 'remove:front_left' and not unsure.reproduced
+    assert sela._posterior(unsure)[2][2] is None
     _, _, fall_prior = sela._posterior(table)
     with_runs = sela.fall_risk.risk(*fall_prior)
     without = sela.fall_risk.risk(*fall_prior[:2])

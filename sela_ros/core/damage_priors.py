@@ -75,11 +75,14 @@ def params_checksum(params) -> str:
 @dataclass(frozen=True)
 class Selection:
     """Which prior :meth:`DamagePriors.select` chose: ``index`` into the tables (None: the
-    archive's own, the intact map), its ``name`` and its ``misfit``."""
+    archive's own, the intact map), its ``name``, its ``misfit``, and whether it
+    ``reproduced`` every step made from a standing start (the robot's own damage, then: its
+    chained runs hold for this robot)."""
 
     index: int | None
     name: str
     misfit: float
+    reproduced: bool = False
 
 
 INTACT = Selection(None, 'intact', 0.0)
@@ -215,11 +218,12 @@ class DamagePriors:
         p = np.where(falls, P_FALL_IF_FALLS, P_FALL_IF_STANDS)
         loglik += np.sum(np.where(fallen, np.log(p), np.log1p(-p)), axis=1)
         best = int(np.argmax(loglik))
-        if max_misfit > 0 and standing.any() and np.all(q[best, standing] / k < REPRODUCED):
+        reproduced = bool(best and standing.any() and np.all(q[best, standing] / k < REPRODUCED))
+        if max_misfit > 0 and reproduced:
             max_misfit = max(max_misfit, max_misfit_reproduced)
         if best == 0 or misfit[best] > max_misfit:
             return Selection(None, 'intact', float(misfit[0]))
-        return Selection(best - 1, self.names[best - 1], float(misfit[best]))
+        return Selection(best - 1, self.names[best - 1], float(misfit[best]), reproduced)
 
     def save(self, path) -> None:
         """Write the tables (``.npz``; atomic: a reader never sees half a file)."""

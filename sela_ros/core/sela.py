@@ -198,7 +198,8 @@ class SELA:
     def _posterior(self, selection):
         """``(mu (k, M), var (M,), fall prior)`` under ``selection``: the fall prior is the
         arguments of :meth:`FallRisk.risk` that the selected damage prior gives (its falls,
-        its support prior, its chained runs), ``()`` for the intact map."""
+        its support prior, and its chained runs if it reproduced the robot's standing
+        starts: those of another damage mislead), ``()`` for the intact map."""
         mu_t, var = self._gp.query_columns()
         if selection.index is None:
             return mu_t, var, ()
@@ -208,7 +209,7 @@ class SELA:
             self._support[selection.index] = self._fall.table_support(fallen)
         return (self._gp.mean_columns_with_prior(table), var,
                 (fallen.astype(float), self._support[selection.index],
-                 self.priors.chained(selection.index)))
+                 self.priors.chained(selection.index) if selection.reproduced else None))
 
     def predict(self):
         """Posterior over the archive: ``(mu (M, k), sigma (M,))`` (under the prior in use)."""
