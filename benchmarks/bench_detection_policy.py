@@ -16,7 +16,8 @@ import time
 
 import numpy as np
 
-from sela_ros.core.archive import default_archive_path, load_archive
+from sela_ros.core.archive import load_archive
+from sela_ros.core.archive_paths import default_archive_path
 from sela_ros.core.damage_detection import DetectorConfig
 from sela_ros.core.mission import run_mission
 from sela_ros.core.planning import GridPlanner, OccupancyGrid

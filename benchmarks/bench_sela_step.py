@@ -53,7 +53,8 @@ def bench_shipped(observations=20, repeats=15, seed=0):
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
     step is timed with a damage prior in use) and two steps ahead."""
-    from sela_ros.core.archive import default_archive_path, load_archive
+    from sela_ros.core.archive import load_archive
+    from sela_ros.core.archive_paths import default_archive_path
     from sela_ros.core.damage_priors import resolve_priors
     from sela_ros.core.learning import make_sela
 

@@ -23,7 +23,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sela_ros.core.archive import load_archive, resolve_archive_path  # noqa: E402
+from sela_ros.core.archive import load_archive  # noqa: E402
+from sela_ros.core.archive_paths import resolve_archive_path  # noqa: E402
 from sela_ros.core.damage_priors import DamagePriors, params_checksum, priors_path  # noqa: E402
 from sela_ros.core.fall_risk import FallRisk  # noqa: E402
 from sela_ros.experiments.campaign import damage_list  # noqa: E402

@@ -19,7 +19,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sela_ros.core.archive import load_archive, resolve_archive_path  # noqa: E402
+from sela_ros.core.archive import load_archive  # noqa: E402
+from sela_ros.core.archive_paths import resolve_archive_path  # noqa: E402
 from sim_bridge.experiment_env import oracle_table  # noqa: E402
 
 

@@ -10,10 +10,10 @@ from sela_ros.core.archive import (
     Archive,
     ArchiveError,
     check_settings,
-    default_archive_path,
     load_archive,
     make_metadata,
 )
+from sela_ros.core.archive_paths import default_archive_path
 
 SETTINGS = {'dt': 1 / 240, 'gait_duration': 3.0, 'controller_version': 'cully2015-v1',
             'model_version': 'sela-hexapod-v1'}
@@ -199,7 +199,7 @@ def test_default_archive_path_is_in_package():
 
 @pytest.mark.parametrize('name', ['8d', '2d'])
 def test_shipped_archive_is_valid(name):
-    from sela_ros.core.archive import shipped_archive_path
+    from sela_ros.core.archive_paths import shipped_archive_path
 
     path = shipped_archive_path(name)
     assert path.exists(), f'the shipped archive {path} is missing'
@@ -267,7 +267,11 @@ def test_an_8d_map_gives_the_fall_model_its_support_and_its_own_fall_kernel():
 
 
 def test_shipped_archives_by_name():
-    from sela_ros.core.archive import SHIPPED_ARCHIVES, resolve_archive_path, shipped_archive_path
+    from sela_ros.core.archive_paths import (
+        SHIPPED_ARCHIVES,
+        resolve_archive_path,
+        shipped_archive_path,
+    )
 
     assert resolve_archive_path('') == str(default_archive_path())
     assert resolve_archive_path('8d') == str(default_archive_path())

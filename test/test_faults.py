@@ -258,7 +258,8 @@ FALLING_GAIT = 21  # of the shipped 2-D archive: tips the robot over without its
 
 
 def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_failed(tmp_path):
-    from sela_ros.core.archive import Archive, load_archive, shipped_archive_path
+    from sela_ros.core.archive import Archive, load_archive
+    from sela_ros.core.archive_paths import shipped_archive_path
 
     # An archive whose most attractive gait (straight to the first waypoint, on paper) is
     # one that makes the damaged robot fall.
@@ -341,7 +342,7 @@ def test_a_step_is_announced_only_once_saved_and_a_failed_save_is_an_error(tmp_p
                                for announced, saved, flag in on_disk), on_disk
         # The archive in use set again keeps what was learned; another one is refused
         # while anything is learned (its observations index the old archive's gaits).
-        from sela_ros.core.archive import default_archive_path
+        from sela_ros.core.archive_paths import default_archive_path
 
         learned = _observations(nodes.state_file)
         r = _set(client, 'sela_adapter', 'archive', '', ParameterType.PARAMETER_STRING)

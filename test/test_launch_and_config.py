@@ -130,7 +130,8 @@ def test_config_defaults_are_the_code_defaults():
     adapter = config['sela_adapter']['ros__parameters']
     for key, value in SELAConfig().to_dict().items():
         if key in ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon'):  # 0: the
-            from sela_ros.core.archive import default_archive_path, load_archive  # archive's
+            from sela_ros.core.archive import load_archive  # archive's
+            from sela_ros.core.archive_paths import default_archive_path  # archive's
             from sela_ros.core.learning import make_sela
 
             assert adapter[key] == 0.0

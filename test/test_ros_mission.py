@@ -9,7 +9,8 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from std_srvs.srv import Trigger
 
-from sela_ros.core.archive import default_archive_path, load_archive
+from sela_ros.core.archive import load_archive
+from sela_ros.core.archive_paths import default_archive_path
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sela_ros.tools.mission_client import MissionClient

@@ -56,7 +56,7 @@ def damage_list(text):
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from sela_ros.core.archive import default_archive_path
+    from sela_ros.core.archive_paths import default_archive_path
 
     parser.add_argument('--archive', action='append', type=hexapod._archive, default=None,
                         help='a map to compare (repeat for several; default: the shipped one)')

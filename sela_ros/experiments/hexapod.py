@@ -51,7 +51,8 @@ FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never ch
 
 
 def _archive(text):
-    from sela_ros.core.archive import ArchiveError, load_archive, resolve_archive_path
+    from sela_ros.core.archive import ArchiveError, load_archive
+    from sela_ros.core.archive_paths import resolve_archive_path
     from sim_bridge.settings import simulator_settings
 
     text = resolve_archive_path(text)
@@ -85,7 +86,7 @@ def _course_map(text):
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment hexapod`` (the common ones are added by the CLI)."""
-    from sela_ros.core.archive import default_archive_path
+    from sela_ros.core.archive_paths import default_archive_path
 
     parser.add_argument('--archive', type=_archive, default=str(default_archive_path()),
                         help='behaviour-performance map (.npz, or 8d / 2d for the shipped '

@@ -6,7 +6,8 @@ import os
 
 from sela_ros.core import persistence
 from sela_ros.core import stepper_io as io
-from sela_ros.core.archive import ArchiveError, load_archive, resolve_archive_path
+from sela_ros.core.archive import ArchiveError, load_archive
+from sela_ros.core.archive_paths import resolve_archive_path
 from sela_ros.core.damage_priors import DamagePriorError, resolve_priors
 from sela_ros.core.learning import make_sela
 from sela_ros.core.stepper import MissionStepper
