@@ -66,11 +66,12 @@ def _config():
 def _in_process_mission(damage, seed, goal, on_step=None):
     """The same mission, same configuration, run in process (no DDS)."""
     from sela_ros.core.damage_detection import DetectorConfig
+    from sela_ros.core.learning import make_sela
     from sela_ros.core.mission import run_mission
     from sela_ros.core.planning import GridPlanner
+    from sela_ros.core.stepper_io import StepperConfig
     from sela_ros.nodes.planner_node import grid_from_description
-    from sim_bridge.environment import ObservedHexapod
-    from sim_bridge.hexapod import Hexapod
+    from sim_bridge.experiment_env import HexapodEnvironment
 
     cfg = _config()
     bridge = cfg['sim_bridge']['ros__parameters']
@@ -79,15 +80,16 @@ def _in_process_mission(damage, seed, goal, on_step=None):
     detector = cfg['damage_detector']['ros__parameters']
     archive = load_archive(default_archive_path())  # sim_bridge's archive "": the same
     physics = archive.simulator_settings
-    env = ObservedHexapod(Hexapod(dt=physics['dt'], gait_duration=physics['gait_duration'],
-                                  solver_iterations=physics['solver_iterations'],
-                                  damage=damage), bridge['observation.noise_std'], seed=seed,
-                          right_on_fall=bridge['right_on_fall'])
+    assert bridge['right_on_fall'] and not adapter['reset_on_fall']  # as HexapodEnvironment
+    env = HexapodEnvironment(archive.params, damage, bridge['observation.noise_std'], seed=seed,
+                             dt=physics['dt'], gait_duration=physics['gait_duration'],
+                             solver_iterations=physics['solver_iterations'])
     grid = grid_from_description(plan['map.resolution'], plan['map.origin'], plan['map.width'],
                                  plan['map.height'], plan.get('map.obstacles', []))
     sela_config = {k: adapter[k] for k in ('gp.kernel.sigma', 'gp.noise',
                                            'acquisition.ucb.alpha', 'goal.eps',
-                                           'planner.horizon', 'priors.max.misfit',
+                                           'planner.horizon', 'planner.lookahead',
+                                           'priors.max.misfit',
                                            'priors.max.misfit.reproduced')}
     from sela_ros.core.damage_priors import resolve_priors  # the adapter's, as it loads them
     priors = resolve_priors(adapter['priors'], default_archive_path(), archive.params)
@@ -95,10 +97,11 @@ def _in_process_mission(damage, seed, goal, on_step=None):
     det = DetectorConfig(**{k.split('.', 1)[1]: v for k, v in detector.items()
                             if k.startswith('detection.')})
     planner = GridPlanner(grid, inflation=plan['planner.inflation'])
-    return run_mission(env, archive, goal, planner,
-                       lookahead=plan['planner.lookahead'], sela_config=sela_config,
-                       detector_config=det, max_steps=adapter['max_steps'], on_step=on_step,
-                       reset_on_fall=adapter['reset_on_fall'], priors=priors)
+    stepper = StepperConfig(max_steps=adapter['max_steps'],
+                            on_detection=adapter['adaptation.on_detection'])
+    run = run_mission(env, make_sela(archive, sela_config, priors=priors), [goal], planner,
+                      detector_config=det, stepper_config=stepper, on_step=on_step)
+    return run.success, run.logic
 
 
 @pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'remove:middle_right',

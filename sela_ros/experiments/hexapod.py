@@ -4,15 +4,19 @@
 
 Every replicate runs every method on its own simulated hexapod (PyBullet, in the worker
 process), damaged from the start, standing at the origin. Within a replicate the robot is
-never reset: learning trials (IT&E) move it too, and a fallen robot is righted in place
+never reset: learning trials (IT&E) move it too, and a fallen robot gets up where it lies
 (the gait counts). Position observations carry Gaussian noise (``--noise-std``, default
-0.1 m: the paper's sigma^2 = 0.01); the goal is judged on the true pose (eps 0.1 m).
+0.1 m: the paper's sigma^2 = 0.01). SELA runs the ``sela_adapter`` node's decision loop
+(:func:`~sela_ros.core.mission.run_mission`: its stepper, damage detector and defaults)
+and, as the node, judges the goal on the observed pose; the baselines judge it on the true
+pose (eps 0.1 m).
 
 Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measurements):
 
-* Reward selection layer: the straight line to the goal with a waypoint ``--lookahead``
-  metres ahead (default 0.6 m; the hexapod's gaits move 0-0.7 m per 3 s). Without
-  obstacles A* on a grid gives the same straight path. With ``--map`` (a course name such
+* Reward selection layer: the planner node's (an empty 8 m square centred on the start,
+  :data:`~sela_ros.core.maps.DEFAULT_MAP`; a goal off it is refused) with a waypoint
+  ``--lookahead`` metres along the path (default 0.6 m; the hexapod's gaits move 0-0.7 m
+  per 3 s). With ``--map`` (a course name such
   as ``maze``, or a map YAML) the optimal grid path on that map, ``--inflation`` metres
   clear of obstacles (:class:`~sela_ros.core.planning.GridPlanner`); without ``--goal`` the
   run is the course's mission (its goals in order, learning carried over), and a gait that
@@ -37,6 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sela_ros.core.maps import DEFAULT_INFLATION
+from sela_ros.core.planning import PlanningError
 from sela_ros.core.sela import SE2Motion, SELAConfig
 from sela_ros.experiments import arguments
 from sela_ros.experiments.baselines import METHODS, Problem
@@ -44,9 +50,8 @@ from sela_ros.experiments.workers import load_priors, worker_archive, worker_pla
 
 HEXAPOD_METHODS = ('sela', 'ite_uncertainty', 'ite_4dir', 'oracle')
 # Chosen by measurement (docs/hexapod_results.md): 0.5-1.0 m are alike, 0.4 m and below worse.
-DEFAULT_LOOKAHEAD = 0.6
+DEFAULT_LOOKAHEAD = SELAConfig.planner_lookahead
 ITE_MAX_ITERATIONS = 15  # the paper's N for the hexapod
-DEFAULT_INFLATION = 0.25  # m, as the planner node's planner.inflation
 FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never chosen
 
 
@@ -208,6 +213,20 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
     )
 
 
+#: Errors that are the user's: said as a usage error (sela-experiment).
+ARGUMENT_ERRORS = (PlanningError,)
+
+
+def check_goals(goals, map_path, inflation):
+    """Refuse goals the planner could not plan to, as the nodes refuse them."""
+    grid, _ = worker_planner(map_path, inflation)
+    for goal in goals:
+        problem = grid.goal_problem(goal)
+        if problem:
+            raise PlanningError(f'goal ({goal[0]:g}, {goal[1]:g}) is {problem}: the planner '
+                                'refuses it (give a map that holds it: --map)')
+
+
 def run_method(job):
     """One method on one replicate; returns a dict of plain numbers."""
     (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
@@ -217,7 +236,10 @@ def run_method(job):
     from sim_bridge.experiment_env import HexapodEnvironment
 
     archive = worker_archive(archive_path)
-    grid, planner = worker_planner(map_path, inflation) if map_path else (None, None)
+    # The planner node's map, or the course's: the nodes and the experiments plan alike.
+    grid, planner = worker_planner(map_path, inflation)
+    if not map_path:
+        grid = None  # no course: no collisions or paths to count
     settings = archive.simulator_settings
     env_seed, method_seed = seed_seq.spawn(2)
     start = time.perf_counter()
@@ -279,6 +301,7 @@ def run(args, progress=None) -> dict:
                        fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
                        fall_cost=getattr(args, 'fall_cost', None),
                        horizon=getattr(args, 'horizon', None)).to_dict()
+    check_goals([*via, goal], map_path, inflation)
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     # Each method's seeds are its slot in the full list of methods: run on their own later
     # (the campaign adding a method to a cell), they are those of a run of all of them.
@@ -344,7 +367,7 @@ def run(args, progress=None) -> dict:
             'parameters': {'noise_std': args.noise_std, 'max_steps': args.max_steps,
                            'damage': args.damage, 'goal': list(goal), 'via': via,
                            'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,
-                           'planner': 'grid' if map_path else 'straight_line',
+                           'planner': 'grid',
                            'map': map_path, 'course': course.name if course else None,
                            'inflation': inflation if map_path else None,
                            'goal_eps': SELAConfig().goal_eps,
