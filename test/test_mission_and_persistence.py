@@ -230,3 +230,26 @@ def test_run_mission_ends_at_once_with_the_reason_when_the_goal_cannot_be_planne
     run = run_mission(robot, make_sela(archive), [(40.0, 0.0)], GridPlanner(default_grid()))
     assert not run.success and run.steps == 0
     assert run.end.code == 'no_plan' and 'off the map' in run.end.reason
+
+
+def test_a_robot_that_starts_off_the_planners_map_is_led_onto_it_and_reaches_the_goal():
+    from types import SimpleNamespace
+
+    from sela_ros.core.learning import make_sela
+    from sela_ros.core.mission import run_mission
+    from sela_ros.core.planning import GridPlanner, OccupancyGrid
+    from sela_ros.core.stepper_io import StepperConfig
+
+    rng = np.random.default_rng(5)
+    descriptors = rng.random((60, 2))
+    grs = np.column_stack([descriptors * 0.5 - 0.25, np.zeros(60)])
+    archive = SimpleNamespace(params=np.zeros((60, 36)), generic_reward=grs, kernel_sigma=0.1,
+                              normalised_descriptors=lambda: descriptors)
+    grid = OccupancyGrid.empty(0.5, 2.5, 0.5, 2.5, 0.05)  # the start (0, 0) is off it
+    assert not grid.in_map((0.0, 0.0))
+    robot = _FakeRobot(grs)
+    run = run_mission(robot, make_sela(archive, {'planner.lookahead': 0.3}), [(1.5, 1.2)],
+                      GridPlanner(grid), stepper_config=StepperConfig(max_steps=40,
+                                                                      adapt_on_start=True))
+    assert run.success and run.end.code == 'succeeded', run.end
+    assert np.hypot(*(robot.pose[:2] - (1.5, 1.2))) < 0.1

@@ -143,6 +143,7 @@ class RunResult:
     learning_iterations: int
     goal_steps: list = dataclasses.field(default_factory=list)  # task steps when each goal
     # of the mission was reached
+    behaviors: list = dataclasses.field(default_factory=list)  # archive index of each step
 
 
 def _reached(env, problem) -> bool:
@@ -215,7 +216,8 @@ def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
                       detector_config=problem.detector, stepper_config=dataclasses.replace(
                           problem.stepper, max_steps=problem.max_steps),
                       detect=problem.detect)
-    return RunResult(run.success, run.steps, 0, run.goal_steps)
+    return RunResult(run.success, run.steps, 0, run.goal_steps,
+                     [r.behavior_index for r in run.logic.records])
 
 
 def _learning_step(env, problem, sela, index):

@@ -37,6 +37,7 @@ import argparse
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -227,40 +228,75 @@ def check_goals(goals, map_path, inflation):
                                 'refuses it (give a map that holds it: --map)')
 
 
-def run_method(job):
+@dataclass(frozen=True)
+class Job:
+    """One method on one replicate (what a worker process is given).
+
+    ``seed`` (a ``numpy.random.SeedSequence``) seeds the observation noise and the method;
+    ``noise_seed``, when given, seeds the observation noise as the ``sim_bridge`` node's
+    ``seed`` parameter does (so that a replicate and a ``sela-demo --seed`` run observe the
+    same noise). The rest are the experiment's options (see :func:`add_arguments`)."""
+
+    name: str
+    seed: object
+    archive: str
+    damage: str
+    goal: tuple
+    noise_std: float = arguments.DEFAULT_NOISE_STD
+    lookahead: float = DEFAULT_LOOKAHEAD
+    max_steps: int = 100
+    ite_iterations: int = ITE_MAX_ITERATIONS
+    oracle_gr: object = None
+    kernel_sigma: float = None
+    alpha: float = None
+    fall_risk: float = None
+    map_path: str = None
+    inflation: float = DEFAULT_INFLATION
+    via: tuple = ()
+    fall_kernel_sigma: float = None
+    fall_cost: float = None
+    priors: str = 'auto'
+    leave_out_own: bool = False
+    horizon: float = None
+    noise_seed: int = None
+
+
+def run_method(job: Job):
     """One method on one replicate; returns a dict of plain numbers."""
-    (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
-     ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk, map_path, inflation,
-     via, fall_kernel_sigma, fall_cost, priors_value, leave_out_own, horizon) = job
     from sela_ros.experiments.courses import CourseEnvironment
     from sim_bridge.experiment_env import HexapodEnvironment
 
-    archive = worker_archive(archive_path)
+    archive = worker_archive(job.archive)
     # The planner node's map, or the course's: the nodes and the experiments plan alike.
-    grid, planner = worker_planner(map_path, inflation)
-    if not map_path:
+    grid, planner = worker_planner(job.map_path, job.inflation)
+    if not job.map_path:
         grid = None  # no course: no collisions or paths to count
     settings = archive.simulator_settings
-    env_seed, method_seed = seed_seq.spawn(2)
+    env_seed, method_seed = job.seed.spawn(2)
+    noise = job.noise_seed if job.noise_seed is not None else np.random.default_rng(env_seed)
     start = time.perf_counter()
-    with HexapodEnvironment(archive.params, damage, noise_std=noise_std,
-                            seed=np.random.default_rng(env_seed),
+    with HexapodEnvironment(archive.params, job.damage, noise_std=job.noise_std, seed=noise,
                             dt=settings['dt'], gait_duration=settings['gait_duration'],
                             solver_iterations=settings['solver_iterations']) as sim:
         env = CourseEnvironment(sim, grid) if grid is not None else sim
-        problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
-                               ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
-                               alpha=alpha, fall_risk=fall_risk, planner=planner, via=via,
-                               fall_kernel_sigma=fall_kernel_sigma, fall_cost=fall_cost,
-                               priors=worker_priors(priors_value, archive_path, damage,
-                                                     leave_out_own), horizon=horizon)
-        result = METHODS[name](env, problem, np.random.default_rng(method_seed))
+        problem = make_problem(archive, job.goal, job.lookahead, job.max_steps,
+                               true_gr=job.oracle_gr, ite_iterations=job.ite_iterations,
+                               kernel_sigma=job.kernel_sigma, alpha=job.alpha,
+                               fall_risk=job.fall_risk, planner=planner, via=job.via,
+                               fall_kernel_sigma=job.fall_kernel_sigma,
+                               fall_cost=job.fall_cost,
+                               priors=worker_priors(job.priors, job.archive, job.damage,
+                                                    job.leave_out_own),
+                               horizon=job.horizon)
+        result = METHODS[job.name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),
                'learning_iterations': int(result.learning_iterations),
+               'behaviors': [int(i) for i in result.behaviors],
                'falls': int(sim.falls), 'sim_seconds': sim.sim_seconds,
                'wall_seconds': time.perf_counter() - start,
-               'final_distance': float(np.hypot(final[0] - goal[0], final[1] - goal[1]))}
+               'final_distance': float(np.hypot(final[0] - job.goal[0],
+                                                final[1] - job.goal[1]))}
         if grid is not None:
             out.update(collisions=int(env.collisions), path=env.path,
                        goal_steps=list(result.goal_steps))
@@ -311,13 +347,13 @@ def run(args, progress=None) -> dict:
         children = seed.spawn(len(slots))
         for name in args.methods:
             child = children[slots.index(name)]
-            jobs.append((name, child, os.path.abspath(args.archive), args.damage, goal,
-                         args.noise_std, args.lookahead, args.max_steps,
-                         args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
-                         args.fall_risk, map_path, inflation, via,
-                         getattr(args, 'fall_kernel_sigma', None),
-                         getattr(args, 'fall_cost', None), priors_value, leave_out_own,
-                         getattr(args, 'horizon', None)))
+            jobs.append(Job(name, child, os.path.abspath(args.archive), args.damage,
+                            tuple(goal), args.noise_std, args.lookahead, args.max_steps,
+                            args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
+                            args.fall_risk, map_path, inflation, tuple(map(tuple, via)),
+                            getattr(args, 'fall_kernel_sigma', None),
+                            getattr(args, 'fall_cost', None), priors_value, leave_out_own,
+                            getattr(args, 'horizon', None)))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
