@@ -156,24 +156,27 @@ class FallRisk:
         """The logistic model's prior on a foreseen damage, from its table's falls.
 
         ``fallen``: ``(M,)`` which gaits fall from a standing start on that damage (a damage
-        prior's table). Returns ``(theta mean, theta sd, beta mean, beta sd)``: the means are
-        the posterior of :data:`THETA_PRIOR` and :data:`BETA_PRIOR` given the table's falls,
-        weighed as :data:`TABLE_EVIDENCE` gaits (a table whose gaits never fall says that
-        this damage rarely tips the robot over, whatever the support); the spreads stay the
-        generic prior's, so the robot's own steps move it as fast as they move that one.
-        None without a stability feature."""
+        prior's table), or the rate at which each falls (a mixture of tables). Returns
+        ``(theta mean, theta sd, beta mean, beta sd)``: the means are the posterior of
+        :data:`THETA_PRIOR` and :data:`BETA_PRIOR` given the table's falls, weighed as
+        :data:`TABLE_EVIDENCE` gaits (a table whose gaits never fall says that this damage
+        rarely tips the robot over, whatever the support); the spreads stay the generic
+        prior's, so the robot's own steps move it as fast as they move that one. None without
+        a stability feature."""
         if self._z is None:
             return None
-        fallen = np.asarray(fallen, dtype=bool).reshape(-1)
+        fallen = np.asarray(fallen, dtype=float).reshape(-1)
         if fallen.shape != self._z.shape:
             raise ValueError(f'fallen must have shape {self._z.shape}, got {fallen.shape}')
+        if not np.all((fallen >= 0) & (fallen <= 1)):
+            raise ValueError('fallen must be flags or fall rates in [0, 1]')
         # The gaits binned on the grid of z: one likelihood term per bin, not per gait.
         step = _Z_GRID[1] - _Z_GRID[0]
         bins = np.rint((self._z - _Z_GRID[0]) / step).astype(int)  # z is within the grid
         weight = TABLE_EVIDENCE / fallen.size
         log_post = self._log_prior.copy()
-        for flag in (True, False):
-            counts = np.bincount(bins[fallen == flag], minlength=_Z_GRID.size) * weight
+        for flag, share in ((True, fallen), (False, 1.0 - fallen)):
+            counts = np.bincount(bins, weights=share, minlength=_Z_GRID.size) * weight
             used = np.flatnonzero(counts)
             log_post += _log_likelihood(self._theta[:, None], self._beta[:, None],
                                         _Z_GRID[None, used], flag) @ counts[used]

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sela_ros.core import acquisition, damage_priors, fall_risk, gp
+from sela_ros.core import acquisition, damage_priors, fall_risk, gp, prior_mixture
 from sela_ros.core.motion import PointMotion, SE2Motion  # noqa: F401 (also imported from here)
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 from sela_ros.core.sela_config import HORIZONS, SELAConfig  # noqa: F401 (imported from here)
@@ -47,10 +47,18 @@ class Decision:
 
 #: :attr:`Decision.prior` of a first step hedged over the intact map and the damage priors.
 HEDGED = 'intact and damage priors'
+#: :attr:`Decision.prior` of the damage priors mixed by the weights that fit the steps seen.
+MIXTURE = 'mixture of damage priors'
+
+
 def prior_reason(name) -> str:
     """Why the prior mean ``name`` (:attr:`Decision.prior`) is the one in use, for logs."""
-    return ('no step has shown the damage yet: the first step is hedged over them'
-            if name == HEDGED else 'the one that best explains the steps seen')
+    if name == HEDGED:
+        return 'no step has shown the damage yet: the first step is hedged over them'
+    if name == MIXTURE:
+        return ('no table reproduced the steps from a standing start: the tables weighed '
+                'by how well they explain the steps seen')
+    return 'the one that best explains the steps seen'
 
 
 #: How many candidates a :class:`Decision` reports.
@@ -88,7 +96,8 @@ class SELA:
             risk of untried behaviours is learnt as a logistic model of it; None: one rate.
         priors: :class:`~sela_ros.core.damage_priors.DamagePriors`, the same behaviours on
             foreseen damages: before each choice the prior that best explains the steps seen
-            is the GPs' prior mean (``priors.max.misfit``); None: always the intact map.
+            (one table, or their mixture: :meth:`select_prior`) is the GPs' prior mean;
+            None: always the intact map.
     """
 
     def __init__(self, candidates_normalised, prior_gr, motion, planner: Callable | None
@@ -185,15 +194,28 @@ class SELA:
         return bool(np.linalg.norm(pose[:2] - self.goal) < self.config.goal_eps)
 
     def select_prior(self) -> damage_priors.Selection:
-        """The prior mean the next choice uses: the intact map, or the damage prior that
-        best explains the steps seen so far (:meth:`DamagePriors.select`)."""
+        """The prior mean the next choice uses: the intact map, the damage prior that
+        best explains the steps seen so far (:meth:`DamagePriors.select`) if it reproduced
+        the robot's standing starts (the robot's own damage, foreseen) or no step started
+        standing, else, with ``priors.weights.sd`` > 0, the mixture of the tables that fits
+        the steps (:func:`~sela_ros.core.prior_mixture.fit_mixture`); with 0, the selected
+        table or the intact map whatever it reproduced."""
         if self.priors is None or not self._gp.num_samples:
             return damage_priors.INTACT
         fall_idx, fallen = self._fall.observations
         idx, grs = self.observations
-        return self.priors.select(self._prior, idx, grs, fall_idx, fallen,
-                                  self.config.priors_max_misfit, self._standing,
-                                  self.config.priors_max_misfit_reproduced)
+        selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                       self.config.priors_max_misfit, self._standing,
+                                       self.config.priors_max_misfit_reproduced)
+        sd = self.config.priors_weights_sd
+        # With no step from a standing start there is nothing a table could reproduce: a
+        # table that explains the steps (priors.max.misfit) is then used as it is.
+        unjudged = selection.index is not None and not any(self._standing)
+        if sd <= 0 or selection.reproduced or unjudged:
+            return selection
+        mixture = prior_mixture.fit_mixture(self._prior, self.priors.generic_reward, idx, grs,
+                                            fall_idx, fallen, self._standing, weight_sd=sd)
+        return damage_priors.Selection(None, MIXTURE, mixture.misfit, mixture=mixture)
 
     def _posterior(self, selection):
         """``(mu (k, M), var (M,), fall prior)`` under ``selection``: the fall prior is the
@@ -201,6 +223,14 @@ class SELA:
         its support prior, and its chained runs if it reproduced the robot's standing
         starts: those of another damage mislead), ``()`` for the intact map."""
         mu_t, var = self._gp.query_columns()
+        if selection.mixture is not None:
+            # The mixture's falls set the fall model's prior as a table's do; no chained runs:
+            # those of the damages mixed mislead on another robot (docs/archive.md).
+            mixture = selection.mixture
+            rates = mixture.fall_rates(self.priors.fallen)
+            mean = mixture.mean(self._prior, self.priors.generic_reward)
+            return (self._gp.mean_columns_with_prior(mean), var,
+                    (rates, self._fall.table_support(rates), None))
         if selection.index is None:
             return mu_t, var, ()
         table = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]

@@ -37,6 +37,11 @@ PARAMETERS = (
     Spec('priors.max.misfit.reproduced', 2.0, 'the same cap for a damage prior that '
          'reproduced every step from a standing start (spawned, reset or righted); below '
          'priors.max.misfit = no exception', low=0.0, high=1e6, read_only=True),
+    Spec('priors.weights.sd', 1.0, 'while no damage prior reproduced the steps from a '
+         'standing start, the prior mean is the tables mixed by weights fitted to the steps '
+         'seen (docs/priors_combination.md); this is the prior spread of each weight; 0 = no '
+         'mixture, the one table that best explains the steps', low=0.0, high=1e6,
+         read_only=True),
     Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
     Spec('detector_timeout', 2.0, "wall time to wait for the detector's verdict on an outcome",
          low=0.001, high=3600.0, unit=' s'),
@@ -63,7 +68,7 @@ PARAMETERS = (
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max.misfit',
-             'priors.max.misfit.reproduced', 'planner.horizon')
+             'priors.max.misfit.reproduced', 'priors.weights.sd', 'planner.horizon')
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,

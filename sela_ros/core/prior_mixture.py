@@ -1,0 +1,171 @@
+"""A prior mean mixed from the damage priors' tables, fitted to the steps seen.
+
+A damage nobody foresaw is rarely one of the tables (:mod:`sela_ros.core.damage_priors`),
+but it is often close to a mixture of them: two legs removed move the robot roughly as the
+two single-leg tables' deviations from the intact map added up, a shortened leg as part of
+that leg's removal. So instead of picking one table, the prior mean is
+
+    m(x) = intact(x) + sum_k w_k (table_k(x) - intact(x)),
+
+with the weights ``w`` fitted to the observed generic rewards by Bayesian linear regression
+(a Gaussian prior on ``w``, Gaussian errors of :data:`~sela_ros.core.damage_priors.
+RESIDUAL_SCALE` per step: what a gait chained from the last one differs from the same gait
+from a standing start; not the GP's noise, which is the spread of one gait repeated from the
+same posture and would make the weights chase every chaining error). In the GP this is a
+kernel learnt from the library, ``k_w(x, y) = sum_k s^2 d_k(x) d_k(y)``, added to the
+exponential one; its posterior mean is the mixture's mean plus the GP's usual correction
+near the gaits tried. As :meth:`DamagePriors.select` does, the fit ignores gaits that fell
+(their displacement is the tumble's), counts steps from a standing start (the tables' own
+experiment) :data:`~sela_ros.core.damage_priors.STANDING_PRECISION` times more precisely,
+and is robust to a share of chained steps far off any prior (a few reweighting passes of the
+same two-component error model).
+
+The weights also mix the tables' falls: a gait's prior risk is the chance that any damage in
+the mixture makes it fall, each table counted with its weight clipped to [0, 1] (a noisy OR:
+``1 - prod_k (1 - c_k fallen_k)``), so two legs removed fear the falls of both tables and a
+shortened leg part of its removal's.
+
+ROS-free; numpy only. One fit is a ``K x K`` solve over the steps seen (K tables), and the
+mixed mean one pass over the tables: well under a millisecond per step on the shipped map.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sela_ros.core.damage_priors import (
+    OUTLIER_FRACTION,
+    OUTLIER_SCALE,
+    RESIDUAL_SCALE,
+    STANDING_PRECISION,
+)
+
+#: Prior standard deviation of each table's weight (``priors.weights.sd``): 1 lets one step
+#: set a weight anywhere between none and the whole table; 0 turns the mixture off.
+DEFAULT_WEIGHT_SD = 1.0
+#: Reweighting passes of the robust fit (the errors' two-component model).
+ROBUST_PASSES = 3
+
+
+@dataclass(frozen=True)
+class Mixture:
+    """A fitted mixture of damage tables.
+
+    Attributes:
+        weights: ``(K,)`` posterior mean of each table's weight.
+        covariance: ``(K, K)`` their posterior covariance.
+        misfit: median squared error per output of the fitted mean over the steps used
+            (units of RESIDUAL_SCALE), as :meth:`DamagePriors.select` reports a table's.
+        steps: how many steps the fit used (fallen gaits left out).
+    """
+
+    weights: np.ndarray
+    covariance: np.ndarray
+    misfit: float
+    steps: int
+
+    def mean(self, base_gr, tables) -> np.ndarray:
+        """``(M, k)`` the mixed prior mean: ``base + sum_k w_k (tables[k] - base)``.
+
+        ``base_gr``: ``(M, k)`` the intact map; ``tables``: ``(K, M, >= k)``."""
+        base_gr = np.asarray(base_gr, dtype=float)
+        k = base_gr.shape[1]
+        w = self.weights
+        mixed = np.tensordot(w, np.asarray(tables)[:, :, :k], axes=1)
+        mixed += (1.0 - float(w.sum())) * base_gr
+        return mixed
+
+    def fall_rates(self, fallen) -> np.ndarray:
+        """``(M,)`` the prior risk of each gait: a noisy OR of the tables' falls ``(K, M)``,
+        each weighed by its weight clipped to [0, 1]."""
+        fallen = np.asarray(fallen, dtype=bool)
+        c = np.clip(self.weights, 0.0, 1.0)
+        stand = np.ones(fallen.shape[1])
+        for ck, fk in zip(c, fallen):
+            if ck > 0:
+                stand[fk] *= 1.0 - ck
+        return 1.0 - stand
+
+
+def fit_mixture(base_gr, tables, indices, observed, fall_indices=(), fallen=(), standing=(),
+                weight_sd=DEFAULT_WEIGHT_SD, prior_weights=None) -> Mixture:
+    """The weights of the tables that best explain the steps seen (Bayesian regression).
+
+    Args:
+        base_gr: ``(M, k)`` the intact map's generic rewards.
+        tables: ``(K, M, >= k)`` the damage priors' generic rewards.
+        indices, observed: the gaits learnt ``(N,)`` and their generic rewards ``(N, k)``.
+        fall_indices, fallen: every step's gait and whether it fell; gaits seen falling are
+            left out of the fit.
+        standing: ``(N,)`` which learnt steps started standing (empty: none).
+        weight_sd: prior standard deviation of each weight (> 0).
+        prior_weights: ``(K,)`` prior mean of the weights; None: zeros (the intact map).
+
+    Raises:
+        ValueError: shapes that do not match, indices outside the map, values not finite,
+            a ``weight_sd`` that is not a positive number.
+    """
+    base_gr = np.asarray(base_gr, dtype=float)
+    tables = np.asarray(tables)
+    if base_gr.ndim != 2:
+        raise ValueError(f'base_gr must have shape (M, k), got {base_gr.shape}')
+    m, k = base_gr.shape
+    if tables.ndim != 3 or tables.shape[1] != m or tables.shape[2] < k:
+        raise ValueError(f'tables must have shape (K, {m}, >= {k}), got {tables.shape}')
+    n_tables = tables.shape[0]
+    if not (np.isfinite(weight_sd) and weight_sd > 0):
+        raise ValueError(f'weight_sd must be a positive number, got {weight_sd!r}')
+    prior = np.zeros(n_tables) if prior_weights is None else \
+        np.asarray(prior_weights, dtype=float).reshape(-1)
+    if prior.shape != (n_tables,) or not np.all(np.isfinite(prior)):
+        raise ValueError(f'prior_weights must be {n_tables} finite numbers, got {prior!r}')
+    indices = np.asarray(indices).reshape(-1)
+    if indices.size and (not np.issubdtype(indices.dtype, np.integer)
+                         or indices.min() < 0 or indices.max() >= m):
+        raise ValueError(f'indices must be integers in [0, {m}), got {indices!r}')
+    observed = np.asarray(observed, dtype=float)
+    if observed.shape != (indices.size, k):
+        raise ValueError(f'observed must have shape ({indices.size}, {k}), got '
+                         f'{observed.shape}')
+    if not np.all(np.isfinite(observed)):
+        raise ValueError('observed generic rewards must be finite')
+    standing = np.asarray(standing, dtype=bool).reshape(-1)
+    if standing.size not in (0, indices.size):
+        raise ValueError(f'standing has {standing.size} flags for {indices.size} steps')
+    fall_indices = np.asarray(fall_indices, dtype=int).reshape(-1)
+    fallen = np.asarray(fallen, dtype=bool).reshape(-1)
+    if fallen.shape != fall_indices.shape:
+        raise ValueError(f'{fall_indices.size} fall indices but {fallen.size} fallen flags')
+
+    keep = ~np.isin(indices, fall_indices[fallen])
+    seen = indices[keep].astype(int)
+    precision_w = np.full(n_tables, 1.0 / weight_sd ** 2)
+    if not seen.size:
+        return Mixture(prior.copy(), np.diag(1.0 / precision_w), 0.0, 0)
+    scale = RESIDUAL_SCALE[:k] if k <= RESIDUAL_SCALE.size else np.full(k, 0.1)
+    base = base_gr[seen]
+    # Rows: one per step and output, in units of the chaining error.
+    target = ((observed[keep] - base) / scale).reshape(-1)
+    design = ((tables[:, seen, :k] - base[None]) / scale).reshape(n_tables, -1).T
+    step_precision = (np.where(standing[keep], STANDING_PRECISION ** 2, 1.0)
+                      if standing.size else np.ones(seen.size))
+    wide = OUTLIER_SCALE ** 2
+    robust = np.ones(seen.size)
+    for _ in range(ROBUST_PASSES):
+        row_w = np.repeat(step_precision * robust, k)
+        a = design.T @ (design * row_w[:, None]) + np.diag(precision_w)
+        b = design.T @ (target * row_w) + precision_w * prior
+        cov = np.linalg.inv(a)
+        w = cov @ b
+        q = (((target - design @ w) ** 2).reshape(seen.size, k).sum(axis=1)
+             * step_precision)
+        # Responsibility of the "explained" component of each step's error, and the
+        # precision the step gets: its mean over the two components.
+        log_in = np.log1p(-OUTLIER_FRACTION) - 0.5 * q
+        log_out = np.log(OUTLIER_FRACTION) - 0.5 * k * np.log(wide) - 0.5 * q / wide
+        resp = np.exp(log_in - np.logaddexp(log_in, log_out))
+        robust = resp + (1.0 - resp) / wide
+    r = ((target - design @ w) ** 2).reshape(seen.size, k).sum(axis=1)
+    misfit = float(np.sort(r)[(r.size - 1) // 2] / k)
+    return Mixture(w, 0.5 * (cov + cov.T), misfit, int(seen.size))
