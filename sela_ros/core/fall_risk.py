@@ -100,6 +100,7 @@ class FallRisk:
             raise ValueError('prior fall rates must be finite numbers in [0, 1]')
         self._args = (candidates, prior[:, None], sigma, variance, noise)
         self._z = None
+        self._log_lik_grid = None  # table_support's, computed on its first call
         if stability is not None:
             stability = np.asarray(stability, dtype=float).reshape(-1)
             if stability.shape != (candidates.shape[0],) or not np.all(np.isfinite(stability)):
@@ -174,12 +175,16 @@ class FallRisk:
         step = _Z_GRID[1] - _Z_GRID[0]
         bins = np.rint((self._z - _Z_GRID[0]) / step).astype(int)  # z is within the grid
         weight = TABLE_EVIDENCE / fallen.size
+        if self._log_lik_grid is None:
+            # log P(fall) and log P(stand) at every grid point of (theta, beta) and of z, once:
+            # a mixture of tables asks for a new support prior at every step.
+            self._log_lik_grid = tuple(
+                _log_likelihood(self._theta[:, None], self._beta[:, None], _Z_GRID[None, :],
+                                flag) for flag in (True, False))
         log_post = self._log_prior.copy()
-        for flag, share in ((True, fallen), (False, 1.0 - fallen)):
+        for grid, share in zip(self._log_lik_grid, (fallen, 1.0 - fallen)):
             counts = np.bincount(bins, weights=share, minlength=_Z_GRID.size) * weight
-            used = np.flatnonzero(counts)
-            log_post += _log_likelihood(self._theta[:, None], self._beta[:, None],
-                                        _Z_GRID[None, used], flag) @ counts[used]
+            log_post += grid @ counts
         w = np.exp(log_post - log_post.max())
         w /= w.sum()
         return (float(w @ self._theta), THETA_PRIOR[1], float(w @ self._beta), BETA_PRIOR[1])
