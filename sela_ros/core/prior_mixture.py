@@ -20,6 +20,14 @@ experiment) :data:`~sela_ros.core.damage_priors.STANDING_PRECISION` times more p
 and is robust to a share of chained steps far off any prior (a few reweighting passes of the
 same two-component error model).
 
+The errors' variance is learnt too (never below the chaining error's): the tables mixed
+rarely explain a damage none of them holds to 0.1 m, and weights fitted as if they did chase
+every error. And the mixture is averaged with the intact map by their evidence (Bayesian model
+averaging: the marginal likelihood of the regression against that of all weights zero), so
+that weights the steps barely support count for little: on a single leg whose own table is
+left out the other legs' tables predict the untried gaits no better than the intact map
+(docs/priors_combination.md).
+
 The weights also mix the tables' falls: a gait's prior risk is the chance that any damage in
 the mixture makes it fall, each table counted with its weight clipped to [0, 1] (a noisy OR:
 ``1 - prod_k (1 - c_k fallen_k)``), so two legs removed fear the falls of both tables and a
@@ -33,6 +41,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import cholesky, solve_triangular
+from scipy.optimize import nnls
 
 from sela_ros.core.damage_priors import (
     OUTLIER_FRACTION,
@@ -44,8 +54,11 @@ from sela_ros.core.damage_priors import (
 #: Prior standard deviation of each table's weight (``priors.weights.sd``): 1 lets one step
 #: set a weight anywhere between none and the whole table; 0 turns the mixture off.
 DEFAULT_WEIGHT_SD = 1.0
-#: Reweighting passes of the robust fit (the errors' two-component model).
-ROBUST_PASSES = 3
+#: Reweighting passes of the robust fit (the errors' two-component model and their variance).
+ROBUST_PASSES = 4
+#: Rows of error variance 1 (the chaining error) assumed before any step, in the estimate of
+#: the errors' variance.
+NOISE_PSEUDO_ROWS = 3.0
 
 
 @dataclass(frozen=True)
@@ -58,12 +71,17 @@ class Mixture:
         misfit: median squared error per output of the fitted mean over the steps used
             (units of RESIDUAL_SCALE), as :meth:`DamagePriors.select` reports a table's.
         steps: how many steps the fit used (fallen gaits left out).
+        probability: the posterior probability of the mixture against the intact map; the
+            ``weights`` are the fitted ones times this (the two models averaged).
+        noise: the errors' variance learnt, in units of the chaining error's (>= 1).
     """
 
     weights: np.ndarray
     covariance: np.ndarray
     misfit: float
     steps: int
+    probability: float = 1.0
+    noise: float = 1.0
 
     def mean(self, base_gr, tables) -> np.ndarray:
         """``(M, k)`` the mixed prior mean: ``base + sum_k w_k (tables[k] - base)``.
@@ -89,7 +107,8 @@ class Mixture:
 
 
 def fit_mixture(base_gr, tables, indices, observed, fall_indices=(), fallen=(), standing=(),
-                weight_sd=DEFAULT_WEIGHT_SD, prior_weights=None) -> Mixture:
+                weight_sd=DEFAULT_WEIGHT_SD, prior_weights=None,
+                nonnegative=True) -> Mixture:
     """The weights of the tables that best explain the steps seen (Bayesian regression).
 
     Args:
@@ -101,6 +120,9 @@ def fit_mixture(base_gr, tables, indices, observed, fall_indices=(), fallen=(), 
         standing: ``(N,)`` which learnt steps started standing (empty: none).
         weight_sd: prior standard deviation of each weight (> 0).
         prior_weights: ``(K,)`` prior mean of the weights; None: zeros (the intact map).
+        nonnegative: weights >= 0 (a truncated normal prior; the weights are its posterior
+            mode): a damage never undoes another, and a negative weight predicts gaits
+            better than on the intact robot.
 
     Raises:
         ValueError: shapes that do not match, indices outside the map, values not finite,
@@ -152,20 +174,49 @@ def fit_mixture(base_gr, tables, indices, observed, fall_indices=(), fallen=(), 
                       if standing.size else np.ones(seen.size))
     wide = OUTLIER_SCALE ** 2
     robust = np.ones(seen.size)
+    tau2 = 1.0  # the errors' variance, in units of the chaining error's
     for _ in range(ROBUST_PASSES):
-        row_w = np.repeat(step_precision * robust, k)
+        row_w = np.repeat(step_precision * robust, k) / tau2
         a = design.T @ (design * row_w[:, None]) + np.diag(precision_w)
         b = design.T @ (target * row_w) + precision_w * prior
         cov = np.linalg.inv(a)
-        w = cov @ b
-        q = (((target - design @ w) ** 2).reshape(seen.size, k).sum(axis=1)
-             * step_precision)
+        w = _nonnegative_solve(a, b) if nonnegative else cov @ b
+        res2 = (target - design @ w) ** 2
+        q = res2.reshape(seen.size, k).sum(axis=1) * step_precision
+        # The tables mixed rarely explain a damage they do not hold to the chaining error:
+        # the errors' variance is learnt (inverse-gamma, NOISE_PSEUDO_ROWS rows at 1), never
+        # below 1, so that a poor fit does not make its weights look sure.
+        tau2 = max(1.0, (NOISE_PSEUDO_ROWS + float(row_w @ res2) * tau2)
+                   / (NOISE_PSEUDO_ROWS + row_w.size))
         # Responsibility of the "explained" component of each step's error, and the
         # precision the step gets: its mean over the two components.
-        log_in = np.log1p(-OUTLIER_FRACTION) - 0.5 * q
-        log_out = np.log(OUTLIER_FRACTION) - 0.5 * k * np.log(wide) - 0.5 * q / wide
+        qt = q / tau2
+        log_in = np.log1p(-OUTLIER_FRACTION) - 0.5 * qt
+        log_out = np.log(OUTLIER_FRACTION) - 0.5 * k * np.log(wide) - 0.5 * qt / wide
         resp = np.exp(log_in - np.logaddexp(log_in, log_out))
         robust = resp + (1.0 - resp) / wide
+    # Bayesian model averaging of the mixture with the intact map (all weights 0): the
+    # mixture's evidence against the map's (a Gaussian linear model's marginal likelihood
+    # ratio, its K weights paid for by the log-determinant), equal prior odds.
+    # At the (constrained) mode, by Laplace's approximation over the weights not at zero;
+    # a half-normal prior is twice as dense as the normal one.
+    b0 = design.T @ (target * row_w)
+    active = w > 0 if nonnegative else np.ones(n_tables, bool)
+    aa = a[np.ix_(active, active)] / precision_w[active]
+    log_bf = float(b0 @ w - 0.5 * w @ (a @ w)) - 0.5 * float(np.linalg.slogdet(aa)[1]) \
+        + (np.log(2.0) * int(active.sum()) if nonnegative else 0.0)
+    if prior_weights is not None:
+        log_bf = np.inf  # the prior's own weights: no comparison with the intact map
+    probability = 1.0 / (1.0 + np.exp(-min(log_bf, 700.0)))
     r = ((target - design @ w) ** 2).reshape(seen.size, k).sum(axis=1)
     misfit = float(np.sort(r)[(r.size - 1) // 2] / k)
-    return Mixture(w, 0.5 * (cov + cov.T), misfit, int(seen.size))
+    return Mixture(probability * w, 0.5 * (cov + cov.T), misfit, int(seen.size),
+                   float(probability), float(tau2))
+
+
+def _nonnegative_solve(a, b):
+    """``argmin 0.5 w^T a w - b^T w`` over ``w >= 0`` (a positive definite): NNLS on the
+    Cholesky factor, ``||R w - R^-T b||^2``."""
+    upper = cholesky(a, lower=False)
+    return nnls(upper, solve_triangular(upper, b, trans='T'))[0]
+
