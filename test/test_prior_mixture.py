@@ -178,3 +178,33 @@ def test_a_table_that_reproduced_the_standing_starts_is_used_as_it_is():
     selection = sela.select_prior()
     assert selection.name == priors.names[2] and selection.reproduced
     assert selection.mixture is None
+
+
+def test_weights_are_nonnegative_unless_asked_otherwise():
+    _, intact, priors = library(7)
+    idx = np.arange(3, M, 20)
+    # A robot that does better than the intact map where table 0 says it does worse.
+    seen = mixed(intact, priors, np.array([-0.5, 0.0, 0.6, 0.0]))[idx]
+    kept = fit_mixture(intact, priors.generic_reward, idx, seen)
+    assert np.all(kept.weights >= 0) and kept.weights[0] == 0 and kept.weights[2] > 0.3
+    signed = fit_mixture(intact, priors.generic_reward, idx, seen, nonnegative=False)
+    np.testing.assert_allclose(signed.weights, [-0.5, 0.0, 0.6, 0.0], atol=0.05)
+
+
+def test_the_mixture_counts_for_what_its_evidence_says_against_the_intact_map():
+    _, intact, priors = library(8)
+    idx = np.arange(11, M, 30)
+    rng = np.random.default_rng(2)
+    # Steps the intact map explains (chaining-sized errors): the weights are averaged away.
+    plain = fit_mixture(intact, priors.generic_reward, idx,
+                        intact[idx] + rng.normal(0, 0.05, (idx.size, 3)))
+    assert plain.probability < 0.5 and np.abs(plain.weights).max() < 0.1
+    # Steps a mixture explains: it holds, and its weights are the fitted ones.
+    truth = np.array([0.0, 0.5, 0.5, 0.0])
+    held = fit_mixture(intact, priors.generic_reward, idx, mixed(intact, priors, truth)[idx])
+    assert held.probability > 0.99 and held.noise == 1.0
+    np.testing.assert_allclose(held.weights, truth, atol=0.05)
+    # Steps nothing explains well: the errors' variance learnt is above the chaining error's.
+    wild = fit_mixture(intact, priors.generic_reward, idx,
+                       rng.uniform(-0.8, 0.8, (idx.size, 3)))
+    assert wild.noise > 2.0
