@@ -220,3 +220,17 @@ def _nonnegative_solve(a, b):
     upper = cholesky(a, lower=False)
     return nnls(upper, solve_triangular(upper, b, trans='T'))[0]
 
+
+def step_log_likelihood(residual, standing=False) -> float:
+    """Log-likelihood of one step's prediction error ``(k,)`` under the damage priors' error
+    model (:meth:`DamagePriors.select`'s): Gaussian of RESIDUAL_SCALE (STANDING_PRECISION
+    times narrower from a standing start), robust to a share of steps far off."""
+    residual = np.asarray(residual, dtype=float).reshape(-1)
+    k = residual.size
+    scale = RESIDUAL_SCALE[:k] if k <= RESIDUAL_SCALE.size else np.full(k, 0.1)
+    q = float(np.sum((residual / scale) ** 2)) * (STANDING_PRECISION ** 2 if standing else 1.0)
+    wide = OUTLIER_SCALE ** 2
+    return float(np.logaddexp(np.log1p(-OUTLIER_FRACTION) - 0.5 * q,
+                              np.log(OUTLIER_FRACTION) - 0.5 * k * np.log(wide)
+                              - 0.5 * q / wide))
+

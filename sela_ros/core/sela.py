@@ -166,6 +166,10 @@ class SELA:
         self._gp = gp.CandidateSetGP(self._candidates, self._prior, sigma=c.gp_kernel_sigma,
                                      variance=c.gp_kernel_variance, noise=c.gp_noise)
         self._standing = []  # per observation: did the step start from a standing start?
+        # How well each way of using the damage priors predicted every step before it was
+        # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
+        # the mixture of the tables.
+        self._prior_scores = {'table': 0.0, 'mixture': 0.0}
 
     def forget_falls(self) -> None:
         """Forget every observed fall: back to the prior fall rates."""
@@ -207,15 +211,48 @@ class SELA:
         selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
                                        self.config.priors_max_misfit, self._standing,
                                        self.config.priors_max_misfit_reproduced)
-        sd = self.config.priors_weights_sd
         # With no step from a standing start there is nothing a table could reproduce: a
         # table that explains the steps (priors.max.misfit) is then used as it is.
         unjudged = selection.index is not None and not any(self._standing)
-        if sd <= 0 or selection.reproduced or unjudged:
+        scores = self._prior_scores
+        if self.config.priors_weights_sd <= 0 or selection.reproduced or unjudged \
+                or scores['mixture'] <= scores['table']:
             return selection
-        mixture = prior_mixture.fit_mixture(self._prior, self.priors.generic_reward, idx, grs,
-                                            fall_idx, fallen, self._standing, weight_sd=sd)
+        mixture = self._mixture(idx, grs, fall_idx, fallen)
         return damage_priors.Selection(None, MIXTURE, mixture.misfit, mixture=mixture)
+
+    def _mixture(self, idx, grs, fall_idx, fallen):
+        return prior_mixture.fit_mixture(self._prior, self.priors.generic_reward, idx, grs,
+                                         fall_idx, fallen, self._standing,
+                                         weight_sd=self.config.priors_weights_sd)
+
+    def _score_priors(self, index, observed, standing) -> None:
+        """Score the one-table choice and the mixture on a step about to be learnt: the
+        likelihood of what it did under each one's posterior mean, from the steps before it
+        (a prequential comparison: each is judged on predicting gaits it has not seen; the
+        mixture's K weights fit the steps seen better than one table can, so their fit
+        alone would always prefer it). The mixture is used only while it predicts better:
+        on a leg removed whose own table is left out, the other legs' tables predict the
+        gaits no better than the intact map (docs/priors_combination.md)."""
+        fall_idx, fallen = self._fall.observations
+        if fall_idx.size and fall_idx[-1] == index and fallen[-1]:
+            return  # the tumble's displacement tests neither
+        idx, grs = self.observations
+        k = self.motion.gr_dim
+        selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                       self.config.priors_max_misfit, self._standing,
+                                       self.config.priors_max_misfit_reproduced)
+        rows = np.append(idx, index)
+        one = (self._prior if selection.index is None
+               else self.priors.generic_reward[selection.index])[rows, :k]
+        weights = self._mixture(idx, grs, fall_idx, fallen).weights
+        base = self._prior[rows]
+        mixed = base + np.tensordot(weights, self.priors.generic_reward[:, rows, :k] - base,
+                                    axes=1)
+        for key, prior in (('table', one), ('mixture', mixed)):
+            predicted = self._gp.mean_at_with_prior(index, prior[:-1], prior[-1])
+            self._prior_scores[key] += prior_mixture.step_log_likelihood(
+                observed - predicted, standing)
 
     def _posterior(self, selection):
         """``(mu (k, M), var (M,), fall prior)`` under ``selection``: the fall prior is the
@@ -364,6 +401,12 @@ class SELA:
         """Learn that behaviour ``index`` produced the generic reward ``observed_gr``;
         ``standing_start``: the step started with the robot standing (the first of a run, or
         after it was put back on its feet), as the damage priors' tables ran every gait."""
+        observed = np.asarray(observed_gr, dtype=float).reshape(-1)
+        if self.priors is not None and len(self.priors) and self._gp.num_samples \
+                and self.config.priors_weights_sd > 0 and observed.shape == \
+                (self.motion.gr_dim,) and np.all(np.isfinite(observed)) \
+                and isinstance(index, (int, np.integer)) and 0 <= index < self.num_candidates:
+            self._score_priors(int(index), observed, bool(standing_start))
         self._gp.add_sample(index, observed_gr)
         self._standing.append(bool(standing_start))
 
@@ -386,6 +429,7 @@ class SELA:
                 'goal': None if self.goal is None else self.goal.tolist(),
                 'indices': idx.tolist(), 'generic_rewards': grs.tolist(),
                 'standing_starts': list(self._standing),
+                'prior_scores': dict(self._prior_scores),
                 'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist()}
 
     def load_state_dict(self, state: dict) -> None:
@@ -417,3 +461,8 @@ class SELA:
             self.tell(int(i), y, st)
         for i, f in zip(fall_indices, fallen):
             self.tell_fall(i, f)
+        # The replay above scored the priors without the falls between the steps: the
+        # scores saved are those the steps gave as they came.
+        scores = state.get('prior_scores')
+        if isinstance(scores, dict) and set(scores) == set(self._prior_scores):
+            self._prior_scores = {k: float(v) for k, v in scores.items()}
