@@ -208,3 +208,50 @@ def test_the_mixture_counts_for_what_its_evidence_says_against_the_intact_map():
     wild = fit_mixture(intact, priors.generic_reward, idx,
                        rng.uniform(-0.8, 0.8, (idx.size, 3)))
     assert wild.noise > 2.0
+
+
+def test_the_mixture_is_used_only_while_it_predicts_the_steps_better():
+    candidates, intact, priors = library(9)
+    steps = (3, 50, 97, 150, 222)
+    # A robot that moves as the intact map says: the one-table choice (the intact map)
+    # predicts every step, the mixture never does better, and is not used.
+    plain = sela_over(priors, candidates, intact)
+    for i in steps:
+        plain.tell(i, intact[i], standing_start=i == 3)
+    scores = plain.state_dict()['prior_scores']
+    assert scores['table'] >= scores['mixture'] and plain.select_prior().name == 'intact'
+    # A robot that two tables add up to: the mixture predicts each step better, and is used.
+    truth = mixed(intact, priors, np.array([0.0, 0.7, 0.0, 0.7]))
+    both = sela_over(priors, candidates, intact)
+    for i in steps:
+        both.tell(i, truth[i], standing_start=i == 3)
+    scores = both.state_dict()['prior_scores']
+    assert scores['mixture'] > scores['table'] and both.select_prior().name == MIXTURE
+    # The scores are what was learnt: a restored SELA makes the same choice.
+    again = sela_over(priors, candidates, intact)
+    again.load_state_dict(both.state_dict())
+    assert again.state_dict()['prior_scores'] == scores
+    assert again.select_prior().name == MIXTURE
+    # Without a mixture (priors.weights.sd 0) nothing is scored.
+    off = sela_over(priors, candidates, intact, priors_weights_sd=0.0)
+    for i in steps:
+        off.tell(i, truth[i], standing_start=i == 3)
+    assert off.state_dict()['prior_scores'] == {'table': 0.0, 'mixture': 0.0}
+    assert off.select_prior().name != MIXTURE
+
+
+def test_the_posterior_mean_of_one_gait_under_another_prior():
+    from sela_ros.core.gp import CandidateSetGP
+
+    candidates, intact, priors = library(10)
+    gp = CandidateSetGP(candidates, intact, sigma=0.3)
+    other = priors.generic_reward[1]
+    assert np.allclose(gp.mean_at_with_prior(5, np.zeros((0, 3)), other[5]), other[5])
+    rng = np.random.default_rng(3)
+    for i in (4, 40, 80, 120):
+        gp.add_sample(i, rng.normal(0, 0.3, 3))
+    full = gp.mean_columns_with_prior(other)
+    rows = other[gp.indices]
+    for j in (0, 40, 300):
+        np.testing.assert_allclose(gp.mean_at_with_prior(j, rows, other[j]), full[:, j],
+                                   atol=1e-12)
