@@ -180,6 +180,34 @@ def totals(rows, runs, methods):
     return '\n'.join(lines)
 
 
+def paired(runs, methods):
+    """Per group, each method against the first on the same (damage, goal, seed): total
+    steps over the runs both made, and how many runs it took fewer, as many, more steps."""
+    if len(methods) < 2:
+        return ''
+    first = methods[0]
+    by_key = {(r['case'], tuple(r['goal']), r['seed'], r['method']): r for r in runs}
+    foreseen_cases = {c[0] for c in FORESEEN}
+    lines = [f'| group | method | runs paired | total steps ({first}) | total steps | fewer '
+             '| as many | more | falls (' + first + ') | falls |', '|' + '---|' * 10]
+    for group, pick in (('unforeseen', lambda c: c not in foreseen_cases),
+                        ('foreseen', lambda c: c in foreseen_cases)):
+        for method in methods[1:]:
+            pairs = [(by_key[(c, g, s, first)], r) for (c, g, s, m), r in by_key.items()
+                     if m == method and pick(c) and (c, g, s, first) in by_key]
+            if not pairs:
+                continue
+            a = [p[0]['steps'] for p in pairs]
+            b = [p[1]['steps'] for p in pairs]
+            lines.append(f'| {group} | {method} | {len(pairs)} | {sum(a)} | {sum(b)} '
+                         f'| {sum(y < x for x, y in zip(a, b))} '
+                         f'| {sum(y == x for x, y in zip(a, b))} '
+                         f'| {sum(y > x for x, y in zip(a, b))} '
+                         f"| {sum(p[0]['falls'] for p in pairs)} "
+                         f"| {sum(p[1]['falls'] for p in pairs)} |")
+    return '\n'.join(lines)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--seeds', type=int, default=3, help='runs per cell (seeds 0..N-1)')
@@ -248,7 +276,8 @@ def main(argv=None):
             and tuple(r['goal']) in goals]
     oracle = oracle_medians()
     rows = summarise(runs, oracle, methods)
-    text = (totals(rows, runs, methods) + '\n\n' + table(rows))
+    text = (totals(rows, runs, methods) + '\n\n' + paired(runs, methods) + '\n\n'
+            + table(rows))
     print(text)
     if args.markdown:
         Path(args.markdown).write_text(text + '\n')
