@@ -40,6 +40,11 @@ PARAMETERS = (
     Spec('priors.max.misfit.reproduced', 2.0, 'the same cap for a damage prior that '
          'reproduced every step from a standing start (spawned, reset or righted); below '
          'priors.max.misfit = no exception', low=0.0, high=1e6, read_only=True),
+    Spec('priors.weights.sd', SELAConfig.priors_weights_sd, 'while no damage prior reproduced the steps from a '
+         'standing start, the prior mean is the tables mixed by weights fitted to the steps '
+         'seen (docs/priors_combination.md); this is the prior spread of each weight; 0 = no '
+         'mixture, the one table that best explains the steps', low=0.0, high=1e6,
+         read_only=True),
     Spec('max_steps', StepperConfig.max_steps, 'steps before a mission is declared failed',
          low=1, high=10**9),
     Spec('detector_timeout', StepperConfig.detector_timeout, "wall time to wait for the "
@@ -70,7 +75,8 @@ PARAMETERS = (
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max.misfit',
-             'priors.max.misfit.reproduced', 'planner.horizon', 'planner.lookahead')
+             'priors.max.misfit.reproduced', 'priors.weights.sd', 'planner.horizon',
+             'planner.lookahead')
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
