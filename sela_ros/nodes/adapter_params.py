@@ -40,11 +40,11 @@ PARAMETERS = (
     Spec('priors.max.misfit.reproduced', 2.0, 'the same cap for a damage prior that '
          'reproduced every step from a standing start (spawned, reset or righted); below '
          'priors.max.misfit = no exception', low=0.0, high=1e6, read_only=True),
-    Spec('priors.weights.sd', SELAConfig.priors_weights_sd, 'while no damage prior reproduced the steps from a '
-         'standing start, the prior mean is the tables mixed by weights fitted to the steps '
-         'seen (docs/priors_combination.md); this is the prior spread of each weight; 0 = no '
-         'mixture, the one table that best explains the steps', low=0.0, high=1e6,
-         read_only=True),
+    Spec('priors.weights.sd', SELAConfig.priors_weights_sd, 'while no damage prior '
+         'reproduced the steps from a standing start, the prior mean is the tables mixed by '
+         'weights fitted to the steps seen (docs/priors_combination.md); this is the prior '
+         'spread of each weight; 0 = no mixture, the one table that best explains the steps',
+         low=0.0, high=1e6, read_only=True),
     Spec('max_steps', StepperConfig.max_steps, 'steps before a mission is declared failed',
          low=1, high=10**9),
     Spec('detector_timeout', StepperConfig.detector_timeout, "wall time to wait for the "
