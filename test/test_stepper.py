@@ -50,6 +50,8 @@ class Driver:
     """Feeds a stepper and keeps what it says; the clock is ``self.now``."""
 
     def __init__(self, **config):
+        # Most of the cycle is about the map trusted until the detector fires.
+        config.setdefault('adapt_on_start', False)
         self.stepper = MissionStepper(_sela(), StepperConfig(**config))
         self.now = 0.0
         self.states = {self.stepper.state}

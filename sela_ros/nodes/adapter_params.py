@@ -51,8 +51,8 @@ PARAMETERS = (
          "detector's verdict on an outcome", low=0.001, high=3600.0, unit=' s'),
     Spec('outcome_timeout', StepperConfig.outcome_timeout, 'wall time to wait for the '
          'outcome of a command before sending it again', low=0.001, high=3600.0, unit=' s'),
-    Spec('adapt_on_start', StepperConfig.adapt_on_start, 'learn from the first step, '
-         'without waiting for the detector', read_only=True),
+    Spec('adapt_on_start', StepperConfig.adapt_on_start, 'learn from the first step (false: '
+         'trust the map until the damage detector fires)', read_only=True),
     Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
     Spec('state_file', '', "where learning is saved after every step ('' = "
          '~/.ros/sela_ros/sela_adapter_state.json)', read_only=True),
