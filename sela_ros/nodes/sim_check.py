@@ -24,8 +24,11 @@ class SimulatorCheck:
         self.asked = False
 
     def use(self, archive, source):
-        """A new archive: it gets its own check."""
+        """A new archive: it gets its own check, and no gait goes out before it answers
+        (a goal that comes before the simulator's parameter service is seen waits for it)."""
         self.archive, self.source, self.asked = archive, source, False
+        if self.client is not None:
+            self.on_hold('')
 
     def poll(self):
         """Ask, if not asked yet for this archive and the simulator answers requests."""
