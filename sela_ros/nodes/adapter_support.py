@@ -10,6 +10,7 @@ from sela_ros.core.archive import ArchiveError, load_archive
 from sela_ros.core.archive_paths import resolve_archive_path
 from sela_ros.core.damage_priors import DamagePriorError, resolve_priors
 from sela_ros.core.learning import make_sela
+from sela_ros.core.plausibility import OutcomeLimits
 from sela_ros.core.stepper import MissionStepper
 from sela_ros.nodes import adapter_params as params
 
@@ -95,7 +96,8 @@ def resume(node):
         restored.extend(stepper.restore(state, node.now()))
         node.stepper = stepper
 
-    state, problem = persistence.resume_state(path, len(node.archive), restore)
+    limits = OutcomeLimits(node.stepper.config.max_displacement)
+    state, problem = persistence.resume_state(path, len(node.archive), restore, limits=limits)
     if problem:
         node._report(io.Level.ERROR, problem)
         return

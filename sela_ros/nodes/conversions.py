@@ -196,7 +196,8 @@ def outcome_event(msg):
     """The mission stepper's event for an outcome message."""
     o = outcome_from_msg(msg)
     return OutcomeReceived(o.behavior_id, tuple(o.generic_reward), tuple(o.end_pose),
-                           o.fallen, o.sim_time, standing_start=o.standing_start)
+                           o.fallen, o.sim_time, standing_start=o.standing_start,
+                           start_pose=tuple(o.start_pose))
 
 
 def verdict_event(msg):
