@@ -58,7 +58,7 @@ def node_parameters():
 class Mission:
     """The node's configuration, in process, over successive goals."""
 
-    def __init__(self, damage, seed, max_steps=40):
+    def __init__(self, damage, seed, max_steps=40, verbose=False):
         cfg = node_parameters()
         bridge, plan = cfg['sim_bridge'], cfg['planner']
         adapter, detector = cfg['sela_adapter'], cfg['damage_detector']
@@ -94,6 +94,11 @@ class Mission:
             kept = adapt()
             if was_adapting and not kept:
                 self.restarts.append((self.steps, before))
+            evidence = getattr(logic, 'evidence', None)
+            if verbose and was_adapting and evidence is not None:
+                print(f'    step {self.steps}: {"kept" if kept else "RESTART"}, '
+                      f'{evidence.describe()}: ' + ', '.join(
+                          f'{i} {e:.2f}/{a:.2f}' for i, e, a in evidence.errors), flush=True)
             return kept
         logic.adapt = counted_adapt
 
@@ -146,8 +151,8 @@ def goals(rng, count):
     return [tuple(rng.uniform(-0.4, 2.4, size=2)) for _ in range(count)]
 
 
-def false_restarts(damage, seed, count):
-    mission = Mission(damage, seed)
+def false_restarts(damage, seed, count, verbose=False):
+    mission = Mission(damage, seed, verbose=verbose)
     reached = 0
     try:
         for goal in goals(np.random.default_rng(seed), count):
@@ -157,8 +162,8 @@ def false_restarts(damage, seed, count):
     return reached, mission
 
 
-def delay(first, second, seed, before):
-    mission = Mission(first, seed)
+def delay(first, second, seed, before, verbose=False):
+    mission = Mission(first, seed, verbose=verbose)
     change = {}
 
     def on_step(step):
@@ -190,6 +195,8 @@ def main():
     parser.add_argument('--delay', action='store_true')
     parser.add_argument('--before', type=int, default=3,
                         help='--delay: goals walked before the second damage')
+    parser.add_argument('--verbose', action='store_true',
+                        help='print the evidence weighed at each detection while adapting')
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(',')]
     if args.delay:
@@ -198,7 +205,7 @@ def main():
         delays = []
         for seed in seeds:
             start = time.perf_counter()
-            at, steps, fired = delay(first, second, seed, args.before)
+            at, steps, fired = delay(first, second, seed, args.before, args.verbose)
             delays.append(steps)
             print(f'seed {seed}: changed at step {at}, restart after {steps} step(s), '
                   f'detector fired after {fired}, {time.perf_counter() - start:.0f} s',
@@ -212,7 +219,7 @@ def main():
         damage = damage.replace('+', ',')
         for seed in seeds:
             start = time.perf_counter()
-            reached, mission = false_restarts(damage, seed, args.goals)
+            reached, mission = false_restarts(damage, seed, args.goals, args.verbose)
             total_goals += args.goals
             total_restarts += len(mission.restarts)
             print(f'{damage:28s} seed {seed}: {reached}/{args.goals} goals, '
