@@ -162,28 +162,39 @@ def false_restarts(damage, seed, count, verbose=False):
     return reached, mission
 
 
-def delay(first, second, seed, before, verbose=False):
+def delay(first, second, seed, before, verbose=False, after=6):
+    """``before`` goals with ``first``, then ``second`` from the next step while adapting,
+    then ``after`` goals more. Returns the step of the change, the steps from it to the
+    first restart and to the first detection (None: none), and the goals reached after the
+    change with the steps they took."""
     mission = Mission(first, seed, verbose=verbose)
     change = {}
+    goal_number = [0]
 
     def on_step(step):
         if 'step' not in change and mission.stepper.logic.adapting and \
                 goal_number[0] >= before:
             mission.robot.set_damage(second)
             change['step'] = step
-    goal_number = [0]
+    reached, steps_after = 0, 0
     try:
-        for goal in goals(np.random.default_rng(seed), before + 6):
-            mission.go(goal, on_step)
+        for goal in goals(np.random.default_rng(seed), before + after + 3):
+            changed = 'step' in change
+            steps = mission.steps
+            ok = mission.go(goal, on_step)
             goal_number[0] += 1
-            if 'step' in change and any(s > change['step'] for s, _ in mission.restarts):
-                break
+            if changed:
+                reached += ok
+                steps_after += mission.steps - steps
+                if goal_number[0] - before > after:
+                    break
     finally:
         mission.close()
     at = change.get('step')
     restart = next((s for s, _ in mission.restarts if at is not None and s > at), None)
     fire = next((s for s in mission.fires if at is not None and s > at), None)
-    return at, None if restart is None else restart - at, None if fire is None else fire - at
+    return (at, None if restart is None else restart - at, None if fire is None else fire - at,
+            reached, steps_after)
 
 
 def main():
@@ -195,6 +206,8 @@ def main():
     parser.add_argument('--delay', action='store_true')
     parser.add_argument('--before', type=int, default=3,
                         help='--delay: goals walked before the second damage')
+    parser.add_argument('--after', type=int, default=6,
+                        help='--delay: goals walked after the second damage')
     parser.add_argument('--verbose', action='store_true',
                         help='print the evidence weighed at each detection while adapting')
     args = parser.parse_args()
@@ -202,17 +215,25 @@ def main():
     if args.delay:
         first, second = 'remove:middle_right', 'remove:middle_right,remove:front_left'
         print(f'{first} -> {second} after {args.before} goals, once adapting')
-        delays = []
+        delays, fires, goals_after, steps_after = [], [], 0, 0
         for seed in seeds:
             start = time.perf_counter()
-            at, steps, fired = delay(first, second, seed, args.before, args.verbose)
+            at, steps, fired, reached, walked = delay(first, second, seed, args.before,
+                                                      args.verbose, args.after)
             delays.append(steps)
+            fires.append(fired)
+            goals_after += reached
+            steps_after += walked
             print(f'seed {seed}: changed at step {at}, restart after {steps} step(s), '
-                  f'detector fired after {fired}, {time.perf_counter() - start:.0f} s',
-                  flush=True)
+                  f'detector fired after {fired}; then {reached}/{args.after} goals in '
+                  f'{walked} steps, {time.perf_counter() - start:.0f} s', flush=True)
         known = [d for d in delays if d is not None]
-        print(f'restart delay: median {statistics.median(known) if known else None} steps, '
-              f'{len(delays) - len(known)} never restarted')
+        heard = [f for f in fires if f is not None]
+        print(f'detection delay: median {statistics.median(heard) if heard else None} steps; '
+              f'restart delay: median {statistics.median(known) if known else None} steps, '
+              f'{len(delays) - len(known)} never restarted; after the change '
+              f'{goals_after}/{args.after * len(seeds)} goals, '
+              f'{steps_after / max(1, goals_after):.1f} steps per goal reached')
         return
     total_goals = total_restarts = 0
     for damage in args.damages.split(','):

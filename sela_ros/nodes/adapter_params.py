@@ -52,7 +52,8 @@ PARAMETERS = (
          read_only=True),
     Spec('adaptation.on_detection', 'evidence', 'a new detection while adapting: keep what '
          "was learned ('keep'), restart from the latest step ('reset'), or restart only when "
-         "the triggering gait was learned before and now does something else ('evidence')",
+         "several learnt gaits land far from what they did ('evidence'); a restart sets "
+         'what it replaces aside in the state file',
          rule=lambda v: None if v in ON_DETECTION else f'must be one of {ON_DETECTION}',
          read_only=True),
     Spec('outcome.max_displacement', 2.0, 'an outcome that moves the robot further than this '
