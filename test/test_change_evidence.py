@@ -129,6 +129,18 @@ def test_a_detection_on_one_surprise_keeps_everything_and_a_new_damage_sets_asid
     assert len(other.observations[0]) == learned + 3 and not other.set_aside_learning
 
 
+def test_a_users_clear_forgets_what_was_set_aside_too():
+    logic = MissionLogic(_sela(), adapt_on_start=True, on_detection='reset')
+    pose = np.zeros(3)
+    for _ in range(2):
+        logic.outcome(logic.decide(pose, np.array([0.3, 0.0])), pose, [0.2, 0.0, 0.0])
+    logic.adapt()
+    assert logic.sela.set_aside_learning
+    logic.forget(adapt_on_start=False)
+    assert not logic.sela.set_aside_learning and not len(logic.sela.observations[0])
+    assert logic.sela.state_dict()['set_aside'] == []
+
+
 def test_the_reset_policy_sets_aside_too():
     logic = MissionLogic(_sela(), adapt_on_start=True, on_detection='reset')
     pose = np.zeros(3)

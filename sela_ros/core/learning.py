@@ -164,7 +164,9 @@ class MissionLogic:
         return self.evidence.first if self.evidence.changed else None
 
     def forget(self, adapt_on_start):
-        """Back to the intact map: every observation forgotten (a user's request)."""
+        """Back to the intact map: every observation forgotten, also what restarts set
+        aside (a user's request; after it another archive may be loaded)."""
         self.sela.reset_learning()
+        self.sela.set_aside_learning = []
         self.adapting = bool(adapt_on_start)
         self.last = None
