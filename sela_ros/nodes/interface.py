@@ -67,7 +67,7 @@ TF_QOS = QoSProfile(depth=100, history=QoSHistoryPolicy.KEEP_LAST,
                     reliability=QoSReliabilityPolicy.RELIABLE)
 #: s: a killed node is reported this long after its last liveliness assertion (DDS's own,
 #: at a fraction of the lease, off the Python executor: a busy node is not reported).
-LIVELINESS_LEASE = 2.0
+LIVELINESS_LEASE = 3.0
 ALIVE_QOS = QoSProfile(depth=1, history=QoSHistoryPolicy.KEEP_LAST,
                        reliability=QoSReliabilityPolicy.RELIABLE,
                        liveliness=QoSLivelinessPolicy.AUTOMATIC,
