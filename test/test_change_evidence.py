@@ -167,3 +167,22 @@ def test_set_aside_learning_is_bounded_and_checked_in_the_state_file(tmp_path):
     with pytest.raises(persistence.StateError, match=r'set_aside\[3\]\.generic_rewards: 1 '
                        r'row\(s\) move the robot more than outcome.max_displacement 2 m'):
         persistence.load_state(path, 60)
+
+
+@pytest.mark.slow
+def test_forty_goals_on_a_robot_whose_damage_never_changes_restart_nothing():
+    """The in-process product loop (the node's step cycle and defaults), 40 successive goals:
+    this damage and seed restarted learning twice under the single-gait rule."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'benchmarks'))
+    from bench_restarts import false_restarts
+
+    reached, mission = false_restarts('remove:middle_right', 1, 40)
+    assert reached == 40
+    assert mission.fires, 'no detection while adapting: nothing was put to the test'
+    assert mission.restarts == [] and mission.stepper.logic.restarts == 0
+    assert mission.stepper.sela.set_aside_learning == []
+    # Every step learnt from the first detection on: nothing erased.
+    assert len(mission.stepper.sela.observations[0]) == mission.steps - mission.fires[0] + 1
