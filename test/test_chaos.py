@@ -16,7 +16,8 @@ from ros_graph import Client, NodeProcesses
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
 SEED = 20261130
-GOALS = ((1.0, 0.6), (0.2, 1.2), (1.2, 1.4), (0.4, 0.2), (1.4, 0.4))
+GOALS = ((1.0, 0.6), (0.2, 1.2), (1.2, 1.4), (0.4, 0.2), (1.4, 0.4), (0.0, 0.8),
+         (1.0, 1.6), (0.2, 0.2), (1.6, 1.0), (0.6, 1.0))  # about 35 steps in all
 KILLS = 6  # spread over the mission, each at a random step, of a random node
 # The adapter judges the goal on the observed pose (noise std 0.01 m) within goal.eps 0.1 m.
 TRUE_POSE_TOLERANCE = 0.1 + 0.05
@@ -48,7 +49,7 @@ def test_goals_are_reached_and_nothing_learned_is_lost_while_nodes_are_killed():
     try:
         mission = MissionClient(client.node, lambda t: client.executor.spin_once(timeout_sec=t))
         ifc.subscription(client.node, ifc.ODOM, lambda m: odom.append(conv.pose_from_odometry(m)))
-        kill_at = sorted(rng.sample(range(2, 40), KILLS))
+        kill_at = sorted(rng.sample(range(2, 28), KILLS))
         victims = [rng.choice(sorted(nodes.procs)) for _ in kill_at]
         killed, seen = [], []
         for goal in GOALS:
@@ -74,7 +75,7 @@ def test_goals_are_reached_and_nothing_learned_is_lost_while_nodes_are_killed():
             client.spin_until(lambda heard=heard: len(odom) > heard, 30, 'the true pose')
             assert np.hypot(*(odom[-1][:2] - np.array(goal))) < TRUE_POSE_TOLERANCE, \
                 (goal, odom[-1])
-        assert killed, 'no node was killed: the mission was shorter than the first kill'
+        assert len(killed) == KILLS, (killed, len(mission.steps))
         final = _observations(nodes.state_file)
         assert final[:len(seen)] == seen and len(final) >= len(seen)
         assert all(nodes.alive().values()), nodes.logs()
