@@ -13,6 +13,7 @@ Gaits run on a worker thread that owns the simulator, so the node's single-threa
 executor keeps answering services, parameters and subscriptions while the robot walks.
 (A MultiThreadedExecutor here delayed some commands by 10-350 ms, measured.)
 """
+import os
 import threading
 import time
 from collections import deque
@@ -66,7 +67,9 @@ PARAMETERS = (
          'iterations) replace the sim.* values; "" = the shipped archive (as the adapter), '
          '"8d"/"2d" = the shipped ones by name, "none" = use the sim.* values',
          read_only=True),
-    Spec('sim.gui', False, "PyBullet's window", read_only=True),
+    Spec('sim.gui', False, "PyBullet's window (needs a display)", read_only=True,
+         rule=lambda v: None if not v or _has_display() else 'needs a display (DISPLAY and '
+         'WAYLAND_DISPLAY are not set); use sim.gui:=false for headless DIRECT mode'),
     Spec('publish_period', 0.5, 'sim time between state messages (/clock, odom, joint states, '
          '/tf) during a gait', low=0.001, high=60.0, unit=' s'),
     Spec('publish_max_rate', 5.0, 'at most this many state messages per wall second during a '
@@ -81,6 +84,10 @@ PARAMETERS = (
     Spec('righting_time', RIGHTING_TIME, 'sim time a fallen robot takes to get up',
          low=0.0, high=600.0, unit=' s', read_only=True),
 )
+
+
+def _has_display():
+    return bool(os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY'))
 
 
 class SimBridge(Node):

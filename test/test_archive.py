@@ -25,7 +25,7 @@ def _archive(m=50, seed=0):
                              descriptor_bounds=[[-1, 1], [-0.5, 0.5]], fitness_name='arc',
                              grid_shape=[8, 8], n_evaluations=1000, seed=seed)
     return Archive(params=rng.random((m, 36)), descriptors=rng.uniform(-1, 1, (m, 2)),
-                   generic_reward=rng.normal(size=(m, 3)), fitness=-rng.random(m),
+                   generic_reward=0.2 * rng.normal(size=(m, 3)), fitness=-rng.random(m),
                    metadata=metadata)
 
 

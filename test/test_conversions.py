@@ -48,6 +48,22 @@ def test_behavior_without_id_and_with_malformed_id():
         conv.behavior_from_msg(msg)
 
 
+@pytest.mark.parametrize('text', ['9' * 400, str(2**53 + 1), '1' * 5000])
+def test_a_command_id_no_outcome_can_carry_is_refused_before_the_gait_runs(text):
+    msg = Float64MultiArray(data=[0.5] * 36)
+    msg.layout.dim = [MultiArrayDimension(label=f'behavior_id={text}', size=36, stride=36)]
+    with pytest.raises(conv.MessageError, match=r'larger than 9007199254740992 \(2\^53\)'):
+        conv.behavior_from_msg(msg)
+
+
+def test_the_largest_command_id_comes_back_in_its_outcome():
+    params, behavior_id = conv.behavior_from_msg(conv.behavior_to_msg([0.5] * 36, 2**53))
+    outcome = conv.BehaviorOutcome(behavior_id=behavior_id, generic_reward=np.zeros(3),
+                                   start_pose=np.zeros(3), end_pose=np.zeros(3), fallen=False,
+                                   sim_time=3.0, duty_factors=np.zeros(6))
+    assert conv.outcome_from_msg(conv.outcome_to_msg(outcome)).behavior_id == 2**53
+
+
 @given(st.integers(0, 2**40), st.lists(finite, min_size=3, max_size=3),
        st.lists(finite, min_size=6, max_size=6), st.booleans(), st.floats(0, 1e6),
        st.lists(unit, min_size=6, max_size=6), st.sampled_from([None, False, True]))

@@ -149,8 +149,9 @@ def test_planner_and_detector_survive_what_used_to_kill_them(tmp_path):
                     and 'refused' not in s.message]
 
         prediction_pub.publish(conv.prediction_to_msg(7, np.array([0.0, 0.0, 1e308])))
+        # Its end heading is the one its reward says (else it is refused, not judged).
         outcome_pub.publish(conv.outcome_to_msg(conv.BehaviorOutcome(
-            7, np.array([0.0, 0.0, -1e308]), np.zeros(3), np.zeros(3))))
+            7, np.array([0.0, 0.0, -1e308]), np.zeros(3), np.array([0.0, 0.0, -1e308]))))
         client.spin_until(lambda: verdicts(7) or not all(nodes.alive().values()), 60,
                           'a verdict on the overflowing outcome')
         assert all(nodes.alive().values()), nodes.logs()

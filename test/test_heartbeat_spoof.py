@@ -1,4 +1,4 @@
-"""Health that cannot be faked: a heartbeat counts only while the graph shows its node."""
+"""Liveness that cannot be faked: the middleware's liveliness, not heartbeat messages."""
 import signal
 
 import pytest
@@ -6,22 +6,32 @@ from diagnostic_msgs.msg import DiagnosticStatus
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
-from sela_ros.nodes.heartbeat import SilenceWatch
+from sela_ros.nodes.heartbeat import LivenessWatch
 
 from ros_graph import Client, NodeProcesses
 
 
-def test_a_heartbeat_from_a_node_the_graph_does_not_show_is_not_counted():
-    watch = SilenceWatch(['planner'], timeout=2.0, now=0.0)
-    assert watch.heard('planner: heartbeat', now=1.0, publishers={'planner'}) is None
-    assert watch.heard('planner: heartbeat', now=3.5, publishers={'spoofer'}) == 'planner'
-    assert watch.check(now=3.5) == (['planner'], [])  # the fake did not keep it alive
-    assert watch.heard('planner: heartbeat', now=4.0, publishers={'planner'}) is None
-    assert watch.check(now=4.0) == ([], ['planner'])
+def test_a_lost_writer_is_reported_even_while_another_one_lives():
+    watch = LivenessWatch(['planner', 'sim_bridge'], grace=2.0, now=0.0)
+    assert watch.changed('planner', 1, 1, now=0.5) == 'alive'
+    assert watch.check(now=1.0) == ([], [])  # sim_bridge not up yet: start-up, no alarm
+    assert watch.check(now=2.5) == (['sim_bridge'], [])  # never came: silent
+    assert 'never alive' in watch.why('sim_bridge', now=2.5)
+    assert watch.changed('planner', 2, 1, now=3.0) is None  # a second writer (a forger's)
+    assert watch.changed('planner', 1, -1, now=4.0) == 'lost'  # the planner's lease expired
+    assert watch.check(now=4.1) == (['planner'], [])
+    assert 'liveliness lease' in watch.why('planner', now=4.1)
+    assert watch.changed('planner', 2, 1, now=5.0) == 'alive'  # restarted
+    assert watch.changed('sim_bridge', 1, 1, now=5.0) == 'alive'
+    assert watch.check(now=5.1) == ([], ['planner', 'sim_bridge'])
+
+
+def _errors(statuses, part):
+    return [s.message for s in statuses if s.level == ifc.ERROR_LEVEL and part in s.message]
 
 
 @pytest.mark.dds
-def test_faked_heartbeats_do_not_hide_a_missing_or_killed_node():
+def test_forged_heartbeats_and_a_forged_writer_do_not_hide_a_missing_or_killed_node():
     nodes = NodeProcesses({'damage_detector': {'heartbeat.timeout': 2.0}},
                           names=('planner', 'damage_detector'))
     client = Client('heartbeat_spoofer')
@@ -30,15 +40,15 @@ def test_faked_heartbeats_do_not_hide_a_missing_or_killed_node():
         node = client.node
         ifc.subscription(node, ifc.DIAGNOSTICS, lambda m: statuses.extend(m.status))
         pub = ifc.publisher(node, ifc.DIAGNOSTICS)
+        # A writer of its own on the planner's liveliness topic, with the same QoS.
+        forged = node.create_publisher(ifc.ALIVE['planner'].type, ifc.ALIVE['planner'].name,
+                                       ifc.ALIVE['planner'].qos)
 
         def fake(*names):
             pub.publish(conv.diagnostic_array([conv.diagnostic_status(
                 DiagnosticStatus.OK, f'{n}{ifc.HEARTBEAT_SUFFIX}', 'alive') for n in names],
                 0.0))
-
-        def errors(part):
-            return [s.message for s in statuses
-                    if s.level == ifc.ERROR_LEVEL and part in s.message]
+            forged.publish(ifc.ALIVE['planner'].type())
 
         def spoof_until(predicate, timeout, what, *names):
             ticks = [0]
@@ -50,21 +60,41 @@ def test_faked_heartbeats_do_not_hide_a_missing_or_killed_node():
                 return predicate()
             client.spin_until(check, timeout, what)
 
+        fakes = ('planner', 'sela_adapter', 'sim_bridge')
         # The adapter never started: faking its heartbeat does not make it alive.
-        spoof_until(lambda: errors('sela_adapter silent'), 120, 'sela_adapter reported silent',
-                    'sela_adapter', 'sim_bridge')
-        # ... and the fake is called out (again at every check while the fakes go on).
-        spoof_until(lambda: errors('heartbeat of sela_adapter sent by another process'), 60,
-                    'the faked heartbeat called out', 'sela_adapter', 'sim_bridge')
-        # The planner is killed while its heartbeat is faked: reported silent once the graph
-        # no longer shows it (the DDS lease), whatever the fakes say.
-        spoof_until(lambda: {'planner', 'damage_detector'} <= {
-            i.node_name for i in node.get_publishers_info_by_topic(ifc.DIAGNOSTICS.root_name)},
-            120, 'the planner and the detector in the graph', 'sela_adapter', 'sim_bridge')
+        spoof_until(lambda: _errors(statuses, 'sela_adapter silent'), 120,
+                    'sela_adapter reported silent', *fakes)
+        spoof_until(lambda: any(s.message == 'planner alive (liveliness)' for s in statuses),
+                    120, "the planner's liveliness seen by the detector", *fakes)
+        assert not _errors(statuses, 'planner silent')
+        # The forged writer is matched: the detector counts it among the planner's writers.
+        spoof_until(lambda: forged.get_subscription_count() >= 1, 60,
+                    'the forged writer matched by the detector', *fakes)
         nodes.kill('planner', signal.SIGKILL)
-        spoof_until(lambda: errors('planner silent'), 150, 'the killed planner reported silent',
-                    'planner', 'sela_adapter', 'sim_bridge')
+        spoof_until(lambda: _errors(statuses, 'planner silent'), 60,
+                    'the killed planner reported silent', *fakes)
+        assert 'liveliness lease' in _errors(statuses, 'planner silent')[0]
         assert nodes.alive() == {'damage_detector': True}, nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
+
+
+@pytest.mark.dds
+def test_no_liveness_alarm_at_start_up():
+    nodes = NodeProcesses({'damage_detector': {'heartbeat.timeout': 60.0}})
+    client = Client('liveness_watcher')
+    statuses = []
+    try:
+        ifc.subscription(client.node, ifc.DIAGNOSTICS, lambda m: statuses.extend(m.status))
+        watched = ('sim_bridge', 'planner', 'sela_adapter')
+        client.spin_until(lambda: all(any(s.message == f'{n} alive (liveliness)'
+                                          for s in statuses) for n in watched), 120,
+                          'every watched node alive, as the detector sees it')
+        alarms = [(s.name, s.message) for s in statuses if s.level == ifc.ERROR_LEVEL
+                  and ('liveness' in s.name or 'heartbeat' in s.message)]
+        assert not alarms, alarms
+        assert all(nodes.alive().values()), nodes.logs()
     finally:
         client.close()
         nodes.stop()

@@ -8,7 +8,9 @@ DESIGN = {  # DESIGN.md's table (plus what the package adds), as seen in the roo
 }
 ADDED = {'/hexapod/joint_states', '/planner/map', '/sela/prediction',
          '/damage_detector/verdict', '/sela_adapter/clear', '/sela/markers',
-         '/map', '/goal_path'}  # map_server's map for the planner; a mission of many goals
+         '/map', '/goal_path',  # map_server's map for the planner; a mission of many goals
+         '/sim_bridge/alive', '/planner/alive', '/damage_detector/alive',
+         '/sela_adapter/alive'}  # liveness from the middleware (QoS liveliness)
 
 
 def test_root_names_are_the_design_ones():

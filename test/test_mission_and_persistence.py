@@ -1,4 +1,4 @@
-"""Mission logic, persistence, heartbeat bookkeeping and the planner's map description."""
+"""Mission logic, persistence and the planner's map description."""
 import json
 import os
 import signal
@@ -13,7 +13,6 @@ from sela_ros.core.learning import MissionLogic
 from sela_ros.core.mission import as_seen_in_odometry
 from sela_ros.core.persistence import StateError, atomic_write_json, load_state, set_aside
 from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
-from sela_ros.nodes.heartbeat import SilenceWatch
 from sela_ros.nodes.planner_node import grid_from_description, load_map_file
 
 
@@ -110,17 +109,6 @@ def _written(path):
         return json.loads(path.read_text())['i']
     except (OSError, ValueError):
         return -1
-
-
-def test_silence_watch_reports_silent_and_back():
-    watch = SilenceWatch(['planner', 'sim_bridge'], timeout=2.0, now=0.0)
-    watch.heard('planner: heartbeat', now=1.5)
-    assert watch.check(now=2.5) == (['sim_bridge'], [])
-    assert watch.check(now=3.0) == ([], [])  # reported once
-    assert watch.check(now=3.6) == (['planner'], [])
-    watch.heard('sim_bridge: heartbeat', now=4.0)
-    watch.heard('unrelated: heartbeat', now=4.0)
-    assert watch.check(now=4.1) == ([], ['sim_bridge'])
 
 
 def test_map_description_with_obstacles():

@@ -7,7 +7,8 @@ from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_
 
 
 def test_ordinary_outcomes_pass():
-    check_outcome([0.3, -0.2, 1.0], [1.0, 1.0, 0.5], [1.2, 1.3, 1.5],
+    # (0.2, 0.3) in odom from a heading of 0.5 rad is (0.319, 0.167) in the start frame.
+    check_outcome([0.319, 0.167, 1.0], [1.0, 1.0, 0.5], [1.2, 1.3, 1.5],
                   expected_start=[1.01, 0.99, 0.5])
     check_outcome([0.0, 0.0, 0.0])
 

@@ -98,9 +98,13 @@ def test_parameters_are_described_and_take_an_integer_for_a_double(client):
     ('damage_detector', ['-p', 'detection.window:=0'],
      '[ERROR] [damage_detector]: Parameter detection.window out of range. Min: 1, Max: 1000, '
      'value: 0 (not started)'),
+    ('sim_bridge', ['-p', 'sim.gui:=true'],
+     '[ERROR] [sim_bridge]: sim.gui needs a display (DISPLAY and WAYLAND_DISPLAY are not set); '
+     'use sim.gui:=false for headless DIRECT mode (not started)'),
 ])
 def test_a_bad_start_up_parameter_ends_the_node_with_one_line(ros_env, node, args, message):
-    proc = subprocess.run([str(executable(node)), '--ros-args'] + args, env=ros_env,
+    env = {k: v for k, v in ros_env.items() if k not in ('DISPLAY', 'WAYLAND_DISPLAY')}
+    proc = subprocess.run([str(executable(node)), '--ros-args'] + args, env=env,
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.strip().splitlines() == [message]

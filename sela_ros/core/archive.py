@@ -27,7 +27,9 @@ from typing import Any
 import numpy as np
 
 from sela_ros.core import N_PARAMS
+from sela_ros.core.npz_files import NpzTooLarge, check_npz_size
 from sela_ros.core.persistence import atomic_write
+from sela_ros.core.plausibility import ImplausibleOutcome, check_generic_rewards
 
 #: Version of the on-disk layout; bump it when keys or meanings change.
 ARCHIVE_FORMAT_VERSION = 1
@@ -343,6 +345,10 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
     if not exists:
         raise ArchiveError(f'no archive file at {path}. ' + _REBUILD_HINT)
     try:
+        check_npz_size(path)
+    except NpzTooLarge as exc:
+        raise ArchiveError(str(exc)) from None
+    try:
         with np.load(path, allow_pickle=False) as npz:
             present = set(npz.files)
             missing = [key for key in _ARRAY_KEYS + ('metadata',) if key not in present]
@@ -383,6 +389,11 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
         archive = Archive(metadata=metadata, **arrays)
     except ArchiveError as exc:
         raise ArchiveError(f'{path}: {exc}. ' + _REBUILD_HINT) from None
+    try:
+        # What the archive says a gait does becomes the GPs' prior mean: bounded as outcomes.
+        check_generic_rewards(archive.generic_reward, what=f'{path}: generic_reward')
+    except ImplausibleOutcome as exc:
+        raise ArchiveError(str(exc)) from None
     if expected_settings is not None:
         check_settings(metadata, expected_settings, source=str(path))
     return archive

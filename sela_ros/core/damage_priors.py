@@ -34,6 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
+from sela_ros.core.npz_files import NpzTooLarge, check_npz_size
+from sela_ros.core.plausibility import ImplausibleOutcome, check_generic_rewards
+
 #: Scale of a table's prediction error for a gait chained from the last one (x, y in metres,
 #: yaw in radians): the measured error of chaining against a standing start is 0.07 m and
 #: 0.19 rad rms (docs/archive.md), rounded up.
@@ -131,8 +134,10 @@ class DamagePriors:
         object.__setattr__(self, '_chained', [
             (np.flatnonzero(r), r[r > 0].astype(float), f[r > 0].astype(float))
             for r, f in zip(runs, falls)])
-        if not np.all(np.isfinite(gr)):
-            raise DamagePriorError('damage priors: generic_reward has NaN or inf')
+        try:
+            check_generic_rewards(gr, what='damage priors: generic_reward')
+        except ImplausibleOutcome as exc:
+            raise DamagePriorError(str(exc)) from None
         if len(set(self.names)) != k:
             raise DamagePriorError(f'damage priors: names repeat: {list(self.names)}')
 
@@ -250,6 +255,10 @@ def load_damage_priors(path, params=None) -> DamagePriors:
     path = Path(path)
     if not path.is_file():
         raise DamagePriorError(f'damage priors {path}: no such file')
+    try:
+        check_npz_size(path)
+    except NpzTooLarge as exc:
+        raise DamagePriorError(f'damage priors {exc}') from None
     try:
         with np.load(path, allow_pickle=False) as npz:
             version = int(npz['format_version'])

@@ -2,10 +2,12 @@
 
 :class:`MissionLogic` wraps SELA with what the paper's outer loop adds: the intact map is
 trusted (nothing learnt, predictions fully sure) until adaptation starts; adaptation starts
-from the outcome that revealed the damage, and restarts from scratch on a new damage.
+from the outcome that revealed the damage, and restarts on a new damage, from the steps that
+showed it; what was learned before is set aside (kept in the state), never deleted.
 """
 import numpy as np
 
+from sela_ros.core.change_evidence import EvidenceConfig
 from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
 from sela_ros.core.stepper_io import StepRecord
 
@@ -66,13 +68,15 @@ class MissionLogic:
     """
 
     def __init__(self, sela, adapt_on_start=False, reset_on_fall=False, on_detection='reset',
-                 evidence_threshold=0.25):
+                 evidence=None):
         if on_detection not in ON_DETECTION:
             raise ValueError(f'adaptation.on_detection must be one of {ON_DETECTION}, got '
                              f'{on_detection!r}')
         self.sela = sela
         self.on_detection = on_detection
-        self.evidence_threshold = float(evidence_threshold)
+        self.evidence_config = evidence or EvidenceConfig()
+        self.evidence = None  # the latest change_evidence() weighed ('evidence' only)
+        self.restarts = 0
         self.reset_on_fall = bool(reset_on_fall)
         self.adapting = bool(adapt_on_start)
         self.adaptations = 1 if adapt_on_start else 0
@@ -134,28 +138,32 @@ class MissionLogic:
             if self.last is not None:
                 self.sela.tell(*self.last)
             return True
-        if not self._new_damage():
+        count = len(self.sela.observations[0])
+        keep_from = self._new_damage()
+        if keep_from is None:
             return True  # the latest step is learnt already: nothing to do
-        self.sela.reset_learning()
-        if self.last is not None:
-            self.sela.tell(*self.last)
+        self.restarts += 1
+        reason = (self.evidence.describe() if self.evidence is not None
+                  else f'adaptation.on_detection {self.on_detection}')
+        self.sela.set_aside(reason, keep_from)
+        if keep_from >= count and self.last is not None:
+            self.sela.tell(*self.last)  # nothing kept: learning starts from the latest step
         return False
 
     def _new_damage(self):
-        """Does the evidence say the robot changed (so that what was learned is wrong)?"""
+        """Does the evidence say the robot changed (so that what was learned is wrong)?
+        None: no; else the position of the first observation to learn again (those before it
+        are set aside)."""
+        self.evidence = None
+        count = len(self.sela.observations[0])
         if self.on_detection == 'keep':
-            return False
+            return None
         if self.on_detection == 'reset' or self.last is None:
-            return True
-        # 'evidence': the triggering gait had been learnt before and now does something
-        # else: that is a new damage; a gait tried for the first time proves nothing.
-        index, latest = self.last[:2]  # a state file's may lack the standing flag
-        indices, observed = self.sela.observations
-        before = observed[:-1][indices[:-1] == index]
-        if not len(before):
-            return False
-        return float(np.linalg.norm(before.mean(axis=0)[:2] - latest[:2])) > \
-            self.evidence_threshold
+            return count
+        # 'evidence': several learnt gaits far from what they did (change_evidence); the
+        # steps from the first of them on are the new robot's and are learnt again.
+        self.evidence = self.sela.change_evidence(self.evidence_config)
+        return self.evidence.first if self.evidence.changed else None
 
     def restore(self, adapting, adaptations, last):
         """Take back where learning stood (a state file's): adapting or not, how many
@@ -165,7 +173,9 @@ class MissionLogic:
         self.last = None if last is None else (int(last[0]), np.array(last[1], float))
 
     def forget(self, adapt_on_start):
-        """Back to the intact map: every observation forgotten."""
+        """Back to the intact map: every observation forgotten, also what restarts set
+        aside (a user's request; after it another archive may be loaded)."""
         self.sela.reset_learning()
+        self.sela.set_aside_learning = []
         self.adapting = bool(adapt_on_start)
         self.last = None

@@ -133,7 +133,7 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             observed = sela.motion.generic_reward(before, after)
             events.append(OutcomeReceived(command.behavior_id, tuple(observed), tuple(after),
                                           fallen, true_pose=tuple(env.true_pose()),
-                                          standing_start=standing))
+                                          standing_start=standing, start_pose=tuple(before)))
             if detect:
                 verdict = detector.observe(command.predicted_gr, observed, command.sigma)
                 events.append(VerdictReceived(command.behavior_id, verdict.fire, verdict.error,
@@ -149,9 +149,13 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             end = command
             if command.success:
                 goal_steps.append(len(stepper.logic.records))
+        learnt = len(stepper.logic.records)
         for event in events:
             commands += stepper.handle(event, next(clock))
         if isinstance(command, SendGait):
+            if len(stepper.logic.records) == learnt:  # the stepper refused the outcome
+                raise RuntimeError(f'outcome of command {command.behavior_id} refused: '
+                                   'the environment reported an implausible step')
             record = stepper.logic.records[-1]
             if detect:
                 record.error = verdict.error

@@ -13,6 +13,8 @@ from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from sela_ros.core.plausibility import ImplausibleOutcome, check_generic_rewards
+
 STATE_FORMAT = 1
 
 
@@ -85,13 +87,15 @@ def _no_constant(name):
     raise ValueError(f'{name} is not a number JSON allows')
 
 
-def load_state(path, archive_size, gr_dim=3):
+def load_state(path, archive_size, gr_dim=3, limits=None):
     """Read an adapter state file written for an archive of ``archive_size`` behaviours.
 
     Everything the learner will replay is checked here, before any of it is used: the
     format, the archive size, the observations (integer indices inside the archive, one
-    finite generic reward of ``gr_dim`` values each) and the goal; NaN or infinity anywhere
-    in the file makes it unusable. Returns None when there is no file.
+    finite generic reward of ``gr_dim`` values each, within what one gait can do:
+    ``limits``, :class:`~sela_ros.core.plausibility.OutcomeLimits`, as live outcomes), the
+    learning set aside and the goal; NaN or infinity anywhere in the file makes it unusable.
+    Returns None when there is no file.
 
     Raises:
         StateError: the file is unreadable, incomplete, inconsistent or for another archive;
@@ -114,17 +118,38 @@ def load_state(path, archive_size, gr_dim=3):
     for key in ('sela', 'mission'):
         if not isinstance(state.get(key), dict):
             raise StateError(f'state file {path} has no {key!r} section')
-    problem = _learner_problem(state['sela'], archive_size, gr_dim)
+    problem = _learner_problem(state['sela'], archive_size, gr_dim, limits)
     if problem:
         raise StateError(f'state file {path}: sela.{problem}')
     return state
 
 
-def _learner_problem(sela, archive_size, gr_dim):
+def _learner_problem(sela, archive_size, gr_dim, limits=None):
     """What is wrong with the learner's section (``SELA.state_dict``), or None."""
     if sela.get('num_candidates') != archive_size:
         return (f'num_candidates is {sela.get("num_candidates")!r}, the archive has '
                 f'{archive_size}')
+    problem = _observations_problem(sela, archive_size, gr_dim, limits)
+    if problem:
+        return problem
+    episodes = sela.get('set_aside', [])
+    if not isinstance(episodes, list):
+        return f'set_aside is {type(episodes).__name__}, expected a list'
+    for n, episode in enumerate(episodes):
+        problem = (_observations_problem(episode, archive_size, gr_dim, limits)
+                   if isinstance(episode, dict) else 'expected an object')
+        if problem:
+            return f'set_aside[{n}].{problem}'
+    goal = sela.get('goal')
+    if goal is not None and not (isinstance(goal, list) and len(goal) == 2
+                                 and all(_is_number(v) for v in goal)):
+        return f'goal is {goal!r}, expected null or [x, y]'
+    return None
+
+
+def _observations_problem(sela, archive_size, gr_dim, limits):
+    """What is wrong with a list of observations (indices, generic rewards, standing
+    starts), or None."""
     indices, rewards = sela.get('indices'), sela.get('generic_rewards')
     if not isinstance(indices, list) or not isinstance(rewards, list):
         return 'indices and generic_rewards must be lists'
@@ -141,10 +166,10 @@ def _learner_problem(sela, archive_size, gr_dim):
             and all(isinstance(v, bool) for v in standing)):
         return (f'standing_starts is {standing!r}, expected {len(indices)} booleans (one per '
                 'index)')
-    goal = sela.get('goal')
-    if goal is not None and not (isinstance(goal, list) and len(goal) == 2
-                                 and all(_is_number(v) for v in goal)):
-        return f'goal is {goal!r}, expected null or [x, y]'
+    try:
+        check_generic_rewards(rewards, limits, 'generic_rewards')
+    except ImplausibleOutcome as exc:
+        return str(exc)
     return None
 
 
@@ -176,7 +201,7 @@ def set_aside(path, reason=None):
     return target
 
 
-def resume_state(path, archive_size, restore, gr_dim=3):
+def resume_state(path, archive_size, restore, gr_dim=3, limits=None):
     """Read the state file and hand it to ``restore(state)``; never fails on a bad file.
 
     A file that cannot be used, for any reason (:func:`load_state` refuses it, or ``restore``
@@ -189,7 +214,7 @@ def resume_state(path, archive_size, restore, gr_dim=3):
         ``(None, message)`` when it was set aside (the message says why and where it is).
     """
     try:
-        state = load_state(path, archive_size, gr_dim)
+        state = load_state(path, archive_size, gr_dim, limits)
         if state is None:
             return None, None
         restore(state)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sela_ros.core import acquisition, damage_priors, fall_risk, gp, prior_mixture
+from sela_ros.core import acquisition, change_evidence, damage_priors, fall_risk, gp, prior_mixture
 from sela_ros.core.motion import PointMotion, SE2Motion  # noqa: F401 (also imported from here)
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 from sela_ros.core.sela_config import HORIZONS, SELAConfig  # noqa: F401 (imported from here)
@@ -77,6 +77,10 @@ def top_candidates(index, x, y, sigma, scores, count=CANDIDATES_SHOWN):
     return np.column_stack([x[order], y[order], sigma[order], scores[order]])
 
 
+#: Episodes of learning set aside (:meth:`SELA.set_aside`) kept in the state, the latest.
+SET_ASIDE_KEPT = 20
+
+
 class SELA:
     """SELA-ADAPT over a fixed archive of behaviours.
 
@@ -128,6 +132,7 @@ class SELA:
                              f'{priors.generic_reward.shape[2]} outputs, this SELA has '
                              f'{candidates.shape[0]} with {motion.gr_dim}')
         self.priors = priors
+        self.set_aside_learning = []  # earlier learning set aside: see set_aside()
         self.goal = None
         if goal is not None:
             self.set_goal(goal)
@@ -170,6 +175,49 @@ class SELA:
         # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
         # the mixture of the tables.
         self._prior_scores = {'table': 0.0, 'mixture': 0.0}
+
+    def set_aside(self, reason, keep_from=None) -> int:
+        """Start learning afresh without losing what was learned: the observations before
+        ``keep_from`` (all of them with None) are set aside with ``reason`` (kept in
+        :meth:`state_dict` under ``set_aside``, at most :data:`SET_ASIDE_KEPT` episodes,
+        and brought back by :meth:`recover`); those from ``keep_from`` on are learnt again.
+        Returns how many observations were set aside."""
+        idx, grs = self.observations
+        standing = list(self._standing)
+        cut = len(idx) if keep_from is None else max(0, min(int(keep_from), len(idx)))
+        if cut:
+            self.set_aside_learning.append({
+                'reason': str(reason), 'indices': idx[:cut].tolist(),
+                'generic_rewards': grs[:cut].tolist(), 'standing_starts': standing[:cut]})
+            del self.set_aside_learning[:-SET_ASIDE_KEPT]
+        self.reset_learning()
+        for i, y, st in zip(idx[cut:], grs[cut:], standing[cut:]):
+            self.tell(int(i), y, st)
+        return cut
+
+    def change_evidence(self, config=None) -> change_evidence.Evidence:
+        """Whether the latest observations say the robot changed
+        (:func:`~sela_ros.core.change_evidence.change_evidence`, with this SELA's kernel)."""
+        idx, grs = self.observations
+        c = self.config
+        return change_evidence.change_evidence(self._candidates, self._prior, idx, grs,
+                                               c.gp_kernel_sigma, c.gp_kernel_variance,
+                                               c.gp_noise, config)
+
+    def recover(self) -> int:
+        """Bring back the latest learning set aside (:meth:`set_aside`), before what was
+        learned since; returns how many observations came back (0: none was set aside)."""
+        if not self.set_aside_learning:
+            return 0
+        episode = self.set_aside_learning.pop()
+        idx, grs = self.observations
+        standing = list(self._standing)
+        self.reset_learning()
+        back = list(zip(episode['indices'], episode['generic_rewards'],
+                        episode['standing_starts']))
+        for i, y, st in back + list(zip(idx, grs, standing)):
+            self.tell(int(i), y, bool(st))
+        return len(back)
 
     def forget_falls(self) -> None:
         """Forget every observed fall: back to the prior fall rates."""
@@ -430,7 +478,8 @@ class SELA:
                 'indices': idx.tolist(), 'generic_rewards': grs.tolist(),
                 'standing_starts': list(self._standing),
                 'prior_scores': dict(self._prior_scores),
-                'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist()}
+                'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist(),
+                'set_aside': [dict(e) for e in self.set_aside_learning]}
 
     def load_state_dict(self, state: dict) -> None:
         """Restore what :meth:`state_dict` saved (same archive); replays the observations."""
@@ -455,8 +504,19 @@ class SELA:
         if len(fall_indices) != len(fallen):
             raise ValueError(f'state has {len(fall_indices)} fall_indices but {len(fallen)} '
                              'fallen flags')
+        set_aside = []
+        for episode in state.get('set_aside', []):
+            n = len(episode['indices'])
+            set_aside.append({
+                'reason': str(episode.get('reason', '')),
+                'indices': [int(i) for i in episode['indices']],
+                'generic_rewards': np.asarray(episode['generic_rewards'], dtype=float).reshape(
+                    n, self.motion.gr_dim).tolist(),
+                'standing_starts': [bool(f) for f in episode.get('standing_starts',
+                                                                 [False] * n)]})
         self.reset_learning()
         self.forget_falls()
+        self.set_aside_learning = set_aside[-SET_ASIDE_KEPT:]
         for i, y, st in zip(indices, grs, standing):
             self.tell(int(i), y, st)
         for i, f in zip(fall_indices, fallen):

@@ -239,8 +239,9 @@ class MissionStepper:
                                'with no command of this adapter')]
             return []
         try:
-            check_outcome(event.generic_reward, p.pose, event.end_pose,
-                          OutcomeLimits(self.config.max_displacement))
+            start = p.pose if event.start_pose is None else event.start_pose
+            check_outcome(event.generic_reward, start, event.end_pose,
+                          OutcomeLimits(self.config.max_displacement), expected_start=p.pose)
         except ImplausibleOutcome as exc:
             # Never learnt, never a pose to start from; the command is sent again after
             # outcome_timeout unless a plausible outcome comes first.

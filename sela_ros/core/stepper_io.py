@@ -58,6 +58,9 @@ class OutcomeReceived:
     true_pose: tuple = None  # in process only: what really happened (for the record)
     # The gait started standing, settled (BehaviorOutcome.standing_start); None: not said.
     standing_start: bool | None = None
+    # observed (x, y, yaw) before the gait, as the outcome says: its generic reward must match
+    # it and end_pose; None: not said (the pose the step was planned from is checked instead).
+    start_pose: tuple = None
 
 
 @dataclass(frozen=True)

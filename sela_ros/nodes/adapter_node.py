@@ -22,6 +22,7 @@ from sela_ros.core import stepper_io as io
 from sela_ros.core.archive import ArchiveError, load_archive
 from sela_ros.core.archive_paths import resolve_archive_path
 from sela_ros.core.planning import OccupancyGrid
+from sela_ros.core.plausibility import OutcomeLimits
 from sela_ros.nodes import adapter_params as params
 from sela_ros.nodes import adapter_support, markers
 from sela_ros.nodes import conversions as conv
@@ -194,7 +195,9 @@ class SelaAdapter(Node):
             restored.extend(stepper.restore(state, self.now()))
             self.stepper = stepper
 
-        state, problem = persistence.resume_state(path, len(self.archive), restore)
+        limits = OutcomeLimits(self.stepper.config.max_displacement)
+        state, problem = persistence.resume_state(path, len(self.archive), restore,
+                                                  limits=limits)
         if problem:
             self._report(io.Level.ERROR, problem)
             return

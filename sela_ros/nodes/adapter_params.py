@@ -62,8 +62,8 @@ PARAMETERS = (
          'from where the robot got up', read_only=True),
     Spec('adaptation.on_detection', StepperConfig.on_detection, 'a new detection while '
          "adapting: keep what was learned ('keep'), restart from the latest step ('reset'), "
-         "or restart only when the triggering gait was learned before and now does something "
-         "else ('evidence')",
+         "or restart only when several learnt gaits land far from what they did "
+         "('evidence'); a restart sets what it replaces aside in the state file",
          rule=lambda v: None if v in ON_DETECTION else f'must be one of {ON_DETECTION}',
          read_only=True),
     Spec('outcome.max_displacement', StepperConfig.max_displacement, 'an outcome that moves '

@@ -112,6 +112,11 @@ def validate_behavior_params(params):
     return array
 
 
+#: The largest command id: outcomes carry it in a Float64MultiArray, exact up to 2^53.
+MAX_BEHAVIOR_ID = 2 ** 53
+MAX_ID_DIGITS = len(str(MAX_BEHAVIOR_ID))
+
+
 def behavior_to_msg(params, behavior_id):
     params = validate_behavior_params(params)
     msg = Float64MultiArray()
@@ -130,10 +135,15 @@ def behavior_from_msg(msg):
         if label.startswith(BEHAVIOR_ID_PREFIX):
             text = label[len(BEHAVIOR_ID_PREFIX):]
             try:
-                behavior_id = int(text)
+                # Checked before the gait runs: its outcome must be able to carry the id.
+                behavior_id = int(text) if len(text) <= MAX_ID_DIGITS else None
             except ValueError as exc:
-                raise MessageError(f'behavior: id {text!r} in layout label is not an integer; '
-                                   f"expected '{BEHAVIOR_ID_PREFIX}<n>'") from exc
+                raise MessageError(f'behavior: id {text[:40]!r} in layout label is not an '
+                                   f"integer; expected '{BEHAVIOR_ID_PREFIX}<n>'") from exc
+            if behavior_id is None or behavior_id > MAX_BEHAVIOR_ID:
+                raise MessageError(f'behavior: id {text[:40]}{"..." if len(text) > 40 else ""} '
+                                   f'is larger than {MAX_BEHAVIOR_ID} (2^53), the largest an '
+                                   'outcome carries exactly (as a float64)')
             if behavior_id < 0:
                 raise MessageError(f'behavior: id {behavior_id} is negative')
     return params, behavior_id
@@ -196,7 +206,8 @@ def outcome_event(msg):
     """The mission stepper's event for an outcome message."""
     o = outcome_from_msg(msg)
     return OutcomeReceived(o.behavior_id, tuple(o.generic_reward), tuple(o.end_pose),
-                           o.fallen, o.sim_time, standing_start=o.standing_start)
+                           o.fallen, o.sim_time, standing_start=o.standing_start,
+                           start_pose=tuple(o.start_pose))
 
 
 def verdict_event(msg):

@@ -7,11 +7,12 @@ on ``~/verdict`` (``/damage_detector/verdict``): the adapter waits for it, and a
 says damage was detected. The same verdict goes to ``diagnostics`` (name ``damage_detector:
 prediction error``; level ERROR when damage is detected) for whoever monitors the robot.
 """
-import time
+import functools
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 
 from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
@@ -19,7 +20,7 @@ from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard, guard_parameters
-from sela_ros.nodes.heartbeat import SilenceWatch, add_heartbeat
+from sela_ros.nodes.heartbeat import LivenessWatch, add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 
@@ -43,10 +44,11 @@ def parameters(defaults):
         Spec('outcome.max_displacement', OutcomeLimits().max_displacement, 'an outcome that '
              'moves the robot further than this in one gait is refused, not judged', low=1e-3,
              high=1e6, unit=' m'),
-        Spec('heartbeat.timeout', 5.0, 'wall time without a heartbeat before a node is reported '
-             'silent', low=0.1, high=3600.0, unit=' s'),
+        Spec('heartbeat.timeout', 5.0, 'wall time from start-up before a watched node never '
+             'seen alive is reported silent (a killed node is reported when its liveliness '
+             'lease expires)', low=0.1, high=3600.0, unit=' s'),
         Spec('heartbeat.nodes', [ifc.SIM_BRIDGE, ifc.PLANNER, ifc.SELA_ADAPTER],
-             'nodes whose heartbeat is watched', read_only=True),
+             'nodes whose liveliness is watched', read_only=True),
     )
 
 
@@ -64,67 +66,50 @@ class DamageDetectorNode(Node):
         self.verdict_pub = ifc.publisher(self, ifc.VERDICT)
         ifc.subscription(self, ifc.PREDICTION, self.prediction_callback)
         ifc.subscription(self, ifc.OUTCOME, self.outcome_callback)
-        # Watch the other nodes' heartbeats: a silent node is reported on diagnostics.
-        self.watch = SilenceWatch(values['heartbeat.nodes'], values['heartbeat.timeout'])
-        self._talkers, self._faked = (-1.0, set()), {}  # node -> when last faked
-        ifc.subscription(self, ifc.DIAGNOSTICS, self.diagnostics_callback)
+        # Watch the other nodes' liveliness (the middleware's): a lost node is reported.
+        watched = [n for n in values['heartbeat.nodes'] if n in ifc.ALIVE]
+        self.watch = LivenessWatch(watched, values['heartbeat.timeout'])
+        self._liveliness = [ifc.subscription(
+            self, ifc.ALIVE[n], lambda _msg: None, event_callbacks=SubscriptionEventCallbacks(
+                liveliness=functools.partial(self.liveliness_callback, n)))
+            for n in watched]
         self.create_timer(0.5, self.check_heartbeats, clock=self.wall)
         add_heartbeat(self)
         self.get_logger().info(f'threshold {self.detector.config.threshold} m')
 
-    def _diagnostics_publishers(self):
-        """Nodes the graph shows publishing diagnostics in this namespace (refreshed at most
-        every 0.2 s: heartbeats are judged by who the graph says can send them)."""
-        now = self.wall.now().nanoseconds * 1e-9
-        if now - self._talkers[0] > 0.2:
-            topic = self.resolve_topic_name(ifc.DIAGNOSTICS.name)
-            namespace = self.get_namespace()
-            self._talkers = (now, {i.node_name for i in self.get_publishers_info_by_topic(
-                topic) if i.node_namespace == namespace})
-        return self._talkers[1]
-
     @guard
-    def diagnostics_callback(self, msg):
-        for status in msg.status:
-            if not status.name.endswith(ifc.HEARTBEAT_SUFFIX):
-                continue
-            faked = self.watch.heard(status.name, publishers=self._diagnostics_publishers())
-            if faked:
-                if faked not in self._faked:  # logged once per episode, not at every fake
-                    self.get_logger().error(self._faked_message(faked))
-                self._faked[faked] = time.monotonic()
+    def liveliness_callback(self, node, info):
+        change = self.watch.changed(node, info.alive_count, info.alive_count_change)
+        if change == 'lost':
+            self.get_logger().error(self.watch.why(node))
+            self._publish_liveness(node, DiagnosticStatus.ERROR, self.watch.why(node))
+        elif change == 'alive':
+            self.get_logger().info(f'{node} alive')
+            self._publish_liveness(node, DiagnosticStatus.OK, f'{node} alive (liveliness)')
 
-    @staticmethod
-    def _faked_message(node):
-        return (f'heartbeat of {node} sent by another process: {node} is not in the graph; '
-                'not counted')
+    def _publish_liveness(self, node, level, message):
+        self.diag_pub.publish(conv.diagnostic_array(
+            [conv.diagnostic_status(level, f'{node}: liveness', message)],
+            self.get_clock().now().to_msg()))
 
     @guard
     def check_heartbeats(self):
         newly_silent, back = self.watch.check()
+        # Every watched node's state at every check, as diagnostics are meant to be read (a
+        # monitor that starts late still sees it); a node still starting up is not said.
         statuses = []
-        # A silent node is logged once but stays an ERROR on /diagnostics at every check, as
-        # diagnostics are meant to be read (a monitor that starts late still sees it); so
-        # does a faked heartbeat, as long as the fakes go on.
-        for node in sorted(self.watch.silent):
-            message = (f'{node} silent for {self.watch.silence(node):.1f} s '
-                       f'(heartbeat.timeout {self.watch.timeout} s)')
-            if node in newly_silent:
-                self.get_logger().error(message)
-            statuses.append(conv.diagnostic_status(DiagnosticStatus.ERROR,
-                                                   f'{node}: liveness', message))
-        now = time.monotonic()
-        for node, heard in sorted(self._faked.items()):
-            if now - heard > self.watch.timeout:
-                del self._faked[node]  # the fakes stopped: a new one is logged again
-            else:
-                statuses.append(conv.diagnostic_status(
-                    DiagnosticStatus.ERROR, f'{node}: liveness', self._faked_message(node)))
-        for node in back:
-            self._faked.pop(node, None)
-            self.get_logger().info(f'{node} is back')
-            statuses.append(conv.diagnostic_status(DiagnosticStatus.OK, f'{node}: liveness',
-                                                   'heartbeat back'))
+        for node in sorted(self.watch.alive):
+            if node in self.watch.silent:
+                message = self.watch.why(node)
+                if node in newly_silent and node not in self.watch.lost:
+                    self.get_logger().error(message)  # a lost one was logged by its event
+                statuses.append(conv.diagnostic_status(DiagnosticStatus.ERROR,
+                                                       f'{node}: liveness', message))
+            elif node in self.watch.seen:
+                if node in back:
+                    self.get_logger().info(f'{node} is back')
+                statuses.append(conv.diagnostic_status(DiagnosticStatus.OK, f'{node}: liveness',
+                                                       f'{node} alive (liveliness)'))
         if statuses:
             self.diag_pub.publish(conv.diagnostic_array(statuses,
                                                         self.get_clock().now().to_msg()))
@@ -150,7 +135,7 @@ class DamageDetectorNode(Node):
         # Everything checked: apply.
         for p in params:
             if p.name == 'heartbeat.timeout':
-                self.watch.timeout = float(p.value)
+                self.watch.grace = float(p.value)
             elif p.name == 'outcome.max_displacement':
                 self.limits = OutcomeLimits(float(p.value))
         if config is not None:
@@ -208,8 +193,12 @@ class DamageDetectorNode(Node):
                    else 'outcome as predicted' if verdict.error <= threshold
                    else 'outcome off prediction')
         if verdict.fire:
-            self.get_logger().warn(f'damage detected on behaviour {outcome.behavior_id}: '
-                                   f'error {verdict.error:.3f} m > {threshold} m')
+            # What was decided on: the mean over the window, not this step's error alone.
+            window = self.detector.config.window
+            self.get_logger().warn(
+                f'damage detected on behaviour {outcome.behavior_id}: mean error '
+                f'{verdict.mean_error:.3f} m over the latest {window} judged outcome(s) > '
+                f'{threshold} m (this one: {verdict.error:.3f} m)')
         self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
             level, STATUS_NAME, message,
             {'behavior_id': outcome.behavior_id, 'error': f'{verdict.error:.6f}',

@@ -1,5 +1,17 @@
-"""Heartbeats on ``diagnostics``: every node says it is alive; a watcher reports silence."""
+"""Liveness: every node holds a liveliness writer; a watcher reports a node whose writer died.
+
+Whether a node is alive is the middleware's to say, not a message's: each node holds a
+writer on ``<node>/alive`` (:data:`~sela_ros.nodes.interface.ALIVE_QOS`, AUTOMATIC
+liveliness with a lease), and the watcher's subscription gets a liveliness-changed event
+when a writer's lease expires (its process was killed or hangs in the kernel) or it goes
+away. Anyone can publish ``planner: heartbeat`` on ``diagnostics``, and anyone can add a
+writer of their own on ``planner/alive``; neither keeps the planner's writer alive, and the
+death of any writer is an event that is reported. The ``<node>: heartbeat`` statuses on
+``diagnostics`` stay, for monitors (a node's lasting problem is said in them); nothing
+decides on them.
+"""
 import time
+import weakref
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.clock import Clock, ClockType
@@ -10,14 +22,22 @@ from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
 SUFFIX = ifc.HEARTBEAT_SUFFIX
 
 
+# Each node's liveliness writer, held for the node's life.
+_WRITERS = weakref.WeakKeyDictionary()
+
 def add_heartbeat(node, period=1.0, problem=None):
-    """Publish ``<node name>: heartbeat`` every ``period`` wall-clock seconds: level OK
-    ('alive'), or ERROR with the message ``problem()`` returns while it returns one (a
-    lasting problem, e.g. the planner's map file could not be used: a monitor that starts
-    late still sees it; the node is alive all the same)."""
+    """Hold the node's liveliness writer (``<node name>/alive``) and publish ``<node name>:
+    heartbeat`` on diagnostics every ``period`` wall-clock seconds: level OK ('alive'), or
+    ERROR with the message ``problem()`` returns while it returns one (a lasting problem,
+    e.g. the planner's map file could not be used: a monitor that starts late still sees
+    it; the node is alive all the same)."""
     pub = ifc.publisher(node, ifc.DIAGNOSTICS)
     name = node.get_name() + SUFFIX
     started = time.monotonic()
+    alive = ifc.ALIVE.get(node.get_name())
+    if alive is not None:
+        # Kept as long as the node lives (DDS asserts it while the writer exists).
+        _WRITERS[node] = node.create_publisher(alive.type, alive.own_name, alive.qos)
 
     def beat():
         message = problem() if problem is not None else None
@@ -30,42 +50,54 @@ def add_heartbeat(node, period=1.0, problem=None):
     return node.create_timer(period, beat, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
-class SilenceWatch:
-    """Tracks the last heartbeat of each watched node (ROS-free bookkeeping)."""
+class LivenessWatch:
+    """Which watched nodes are alive, from liveliness-changed events (ROS-free bookkeeping).
 
-    def __init__(self, nodes, timeout, now=None):
-        start = time.monotonic() if now is None else now
-        self.timeout = float(timeout)
-        self.last = {n: start for n in nodes}
+    A node is *lost* from the event that one of its writers lost its liveliness until a
+    writer of it becomes alive again (a restarted node); a node never seen alive is *silent*
+    once ``grace`` seconds have passed since the watch started (start-up is not an alarm).
+    """
+
+    def __init__(self, nodes, grace, now=None):
+        self.started = time.monotonic() if now is None else now
+        self.grace = float(grace)
+        self.alive = {n: 0 for n in nodes}  # writers alive, as the latest event said
+        self.seen = set()  # nodes seen alive at least once
+        self.lost = {}  # node -> when it was lost
         self.silent = set()
 
-    def heard(self, status_name, now=None, publishers=None):
-        """A status named ``status_name`` was heard. Returns the watched node it claims to
-        be the heartbeat of when that claim is refused (else None).
-
-        Anyone can publish ``planner: heartbeat`` on diagnostics. With ``publishers`` (the
-        names of the nodes the graph shows publishing diagnostics), a heartbeat counts only
-        while its node is among them: a process that fakes the heartbeat of a node that is
-        gone does not keep it alive.
-        """
-        if not status_name.endswith(SUFFIX):
-            return None
-        node = status_name[:-len(SUFFIX)]
-        if node not in self.last:
-            return None
-        if publishers is not None and node not in publishers:
-            return node
-        self.last[node] = time.monotonic() if now is None else now
+    def changed(self, node, alive_count, alive_change, now=None):
+        """A liveliness-changed event on ``node``'s topic; returns 'lost', 'alive' or None
+        (nothing to report)."""
+        now = time.monotonic() if now is None else now
+        self.alive[node] = int(alive_count)
+        if alive_change < 0:
+            # One of its writers died: reported even while another writer (a restarted
+            # node not yet gone from the graph, or someone else's) is still alive.
+            self.lost[node] = now
+            return 'lost'
+        if alive_change > 0 and alive_count > 0:
+            first = node not in self.seen
+            self.seen.add(node)
+            if node in self.lost or first:
+                self.lost.pop(node, None)
+                return 'alive'
         return None
 
     def check(self, now=None):
         """Return ``(newly_silent, back)``: node lists whose state changed since last check."""
         now = time.monotonic() if now is None else now
-        silent = {n for n, t in self.last.items() if now - t > self.timeout}
+        late = now - self.started > self.grace
+        silent = set(self.lost) | {n for n in self.alive if late and n not in self.seen}
         newly, back = sorted(silent - self.silent), sorted(self.silent - silent)
         self.silent = silent
         return newly, back
 
-    def silence(self, node, now=None):
+    def why(self, node, now=None):
+        """Why ``node`` is silent, in words."""
         now = time.monotonic() if now is None else now
-        return now - self.last[node]
+        if node in self.lost:
+            return (f'{node} silent for {now - self.lost[node]:.1f} s: its liveliness lease '
+                    f'({ifc.LIVELINESS_LEASE:g} s) expired or its writer went away')
+        return (f'{node} silent: never alive in {now - self.started:.1f} s '
+                f'(heartbeat.timeout {self.grace:g} s)')

@@ -18,6 +18,11 @@ QoS, by what a lost message would cost:
 * ``GOAL_QOS``: what RViz's 2D Goal Pose tool and ``ros2 topic pub`` send (reliable,
   volatile, as nav2 subscribes): a latched publisher is compatible with it, but an old
   goal is never replayed to a node that (re)starts.
+* ``ALIVE_QOS``: liveness from the middleware. Each node holds a writer on ``<node>/alive``
+  with AUTOMATIC liveliness and a lease of :data:`LIVELINESS_LEASE`: DDS asserts it for as
+  long as the process runs, and a watcher's subscription gets a liveliness-changed event
+  when the lease of a writer expires (the process was killed) or the writer goes. No
+  message is ever sent on it, and nothing published anywhere can keep a dead writer alive.
 """
 from dataclasses import dataclass
 
@@ -25,10 +30,17 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetPlan
-from rclpy.qos import QoSDurabilityPolicy, QoSHistoryPolicy, QoSProfile, QoSReliabilityPolicy
+from rclpy.duration import Duration
+from rclpy.qos import (
+    QoSDurabilityPolicy,
+    QoSHistoryPolicy,
+    QoSLivelinessPolicy,
+    QoSProfile,
+    QoSReliabilityPolicy,
+)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64, Float64MultiArray, String
+from std_msgs.msg import Empty, Float64, Float64MultiArray, String
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
@@ -53,6 +65,13 @@ GOAL_QOS = QoSProfile(depth=10, history=QoSHistoryPolicy.KEEP_LAST,
 # As tf2_ros's TransformBroadcaster: reliable, volatile, a deep queue.
 TF_QOS = QoSProfile(depth=100, history=QoSHistoryPolicy.KEEP_LAST,
                     reliability=QoSReliabilityPolicy.RELIABLE)
+#: s: a killed node is reported this long after its last liveliness assertion (DDS's own,
+#: at a fraction of the lease, off the Python executor: a busy node is not reported).
+LIVELINESS_LEASE = 3.0
+ALIVE_QOS = QoSProfile(depth=1, history=QoSHistoryPolicy.KEEP_LAST,
+                       reliability=QoSReliabilityPolicy.RELIABLE,
+                       liveliness=QoSLivelinessPolicy.AUTOMATIC,
+                       liveliness_lease_duration=Duration(seconds=LIVELINESS_LEASE))
 #: Kept for readers of the outcome stream (an alias: outcomes are decision inputs).
 OUTCOME_QOS = DECISION_QOS
 
@@ -125,6 +144,8 @@ REWARD = Topic('sela/reward', Float64, COMMAND_QOS)
 VERDICT = Topic('damage_detector/verdict', Float64MultiArray, DECISION_QOS,
                 owner=DAMAGE_DETECTOR)
 DIAGNOSTICS = Topic('diagnostics', DiagnosticArray, STATE_QOS)
+# Liveness: one writer per node, never published on (see ALIVE_QOS).
+ALIVE = {name: Topic(f'{name}/alive', Empty, ALIVE_QOS, owner=name) for name in NODES}
 # For RViz and Foxglove. ``tf`` is relative (``/tf`` in the root namespace): a namespaced
 # robot has its own tree, and its RViz remaps /tf:=tf (the launch file does).
 TF = Topic('tf', TFMessage, TF_QOS)  # odom -> base_link (REP-105), from sim_bridge
@@ -137,7 +158,8 @@ CLEAR = Service('sela_adapter/clear', Trigger, SELA_ADAPTER)
 RESET = Service('sim_bridge/reset', Trigger, SIM_BRIDGE)
 
 TOPICS = (CLOCK, ODOM, JOINT_STATES, BEHAVIOR, OUTCOME, GOAL, GOAL_PATH, PATH, MAP, MAP_IN,
-          TARGET, PREDICTION, REWARD, VERDICT, DIAGNOSTICS, TF, ROBOT_DESCRIPTION, MARKERS)
+          TARGET, PREDICTION, REWARD, VERDICT, DIAGNOSTICS, TF, ROBOT_DESCRIPTION, MARKERS,
+          *ALIVE.values())
 SERVICES = (MAKE_PLAN, ADAPT, CLEAR, RESET)
 
 
@@ -146,10 +168,11 @@ def publisher(node, topic):
     return node.create_publisher(topic.type, _as_seen_by(node, topic), topic.qos)
 
 
-def subscription(node, topic, callback, qos=None):
-    """A subscription to ``topic`` with its QoS (or ``qos``, e.g. to record it latched)."""
+def subscription(node, topic, callback, qos=None, event_callbacks=None):
+    """A subscription to ``topic`` with its QoS (or ``qos``, e.g. to record it latched);
+    ``event_callbacks``: rclpy's ``SubscriptionEventCallbacks`` (e.g. liveliness)."""
     return node.create_subscription(topic.type, _as_seen_by(node, topic), callback,
-                                    qos or topic.qos)
+                                    qos or topic.qos, event_callbacks=event_callbacks)
 
 
 def server(node, service, callback):
