@@ -52,8 +52,11 @@ $(VENV)/.installed: $(VENV)/.deps $(VENV)/.interfaces $(PKG_SOURCES)
 demo: venv
 	$(VENV)/bin/sela-demo $(DEMO_ARGS)
 
+# TEST_ARGS naming test files or folders runs those only; else the whole suite.
+TEST_PATHS = $(if $(filter test/% ./test/%,$(TEST_ARGS)),,test)
+
 test: venv
-	$(PY) -m pytest test $(TEST_ARGS)
+	$(PY) -m pytest $(TEST_PATHS) $(TEST_ARGS)
 
 bench: venv
 	$(PY) benchmarks/run_all.py

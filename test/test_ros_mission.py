@@ -87,10 +87,11 @@ def _in_process_mission(damage, seed, goal, on_step=None):
                                  plan['map.height'], plan.get('map.obstacles', []))
     sela_config = {k: adapter[k] for k in ('gp.kernel.sigma', 'gp.noise',
                                            'acquisition.ucb.alpha', 'goal.eps',
-                                           'planner.horizon', 'priors.max.misfit',
-                                           'priors.max.misfit.reproduced')}
+                                           'planner.horizon')}
+    sela_config.update({'priors.max.misfit': adapter['priors.max_misfit'],
+                        'priors.max.misfit.reproduced': adapter['priors.max_misfit_reproduced']})
     from sela_ros.core.damage_priors import resolve_priors  # the adapter's, as it loads them
-    priors = resolve_priors(adapter['priors'], default_archive_path(), archive.params)
+    priors = resolve_priors(adapter['priors.tables'], default_archive_path(), archive.params)
     assert priors is not None and len(priors) == 6
     det = DetectorConfig(**{k.split('.', 1)[1]: v for k, v in detector.items()
                             if k.startswith('detection.')})

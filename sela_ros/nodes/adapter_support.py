@@ -15,10 +15,10 @@ from sela_ros.nodes import adapter_params as params
 
 
 def _priors(node, archive, path):
-    """The damage priors the ``priors`` parameter names for ``archive``; None (logged) if
+    """The damage priors the ``priors.tables`` parameter names for ``archive``; None (logged) if
     there are none or they cannot be used: SELA then adapts from the intact map alone."""
     try:
-        priors = resolve_priors(node.values['priors'], path, archive.params)
+        priors = resolve_priors(node.values['priors.tables'], path, archive.params)
     except DamagePriorError as exc:
         node.get_logger().error(f'{exc}; adapting from the intact map alone')
         return None
