@@ -65,7 +65,7 @@ bench: venv
 # (MAPBUILD_DIR, WORKERS, DASK, EVALUATIONS: see scripts/build_map8d.sh).
 map8d: venv
 	setsid nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 < /dev/null &
-	@echo "building in the background; progress: $${MAPBUILD_DIR:-/work/mapbuild}/build.log"
+	@echo "building in the background; progress: $${MAPBUILD_DIR:-$${XDG_CACHE_HOME:-$$HOME/.cache}/sela_ros/mapbuild}/build.log"
 
 # SELA's damage priors for the shipped 8-D map: every gait run on each foreseen damage
 # (14-21 minutes of one core per damage), then the fast gaits the fall model fears run after

@@ -19,10 +19,12 @@ import numpy as np
 from sela_ros.core.archive import load_archive
 from sela_ros.core.archive_paths import default_archive_path
 from sela_ros.core.damage_detection import DetectorConfig
+from sela_ros.core.learning import make_sela
+from sela_ros.core.maps import default_grid
 from sela_ros.core.mission import run_mission
-from sela_ros.core.planning import GridPlanner, OccupancyGrid
-from sim_bridge.environment import ObservedHexapod
-from sim_bridge.hexapod import Hexapod
+from sela_ros.core.planning import GridPlanner
+from sela_ros.core.stepper_io import StepperConfig
+from sim_bridge.experiment_env import HexapodEnvironment
 
 POLICIES = ('reset', 'keep', 'evidence')
 # (name, damage at the start, (step, damage from that step) or None, goal)
@@ -38,22 +40,22 @@ SCENARIOS = (
 
 def run(archive, scenario, policy, seed, max_steps, adapt_on_start=False):
     _, damage, change, goal = scenario
-    robot = Hexapod(damage=damage)
-    env = ObservedHexapod(robot, 0.01, seed=seed)
-    grid = OccupancyGrid.empty(-1.0, 4.0, -3.0, 4.0, 0.05)
+    env = HexapodEnvironment(archive.params, damage, 0.01, seed=seed)
 
     def on_step(record):
         if change is not None and record.step == change[0]:
-            robot.set_damage(change[1])
+            env.robot.set_damage(change[1])
     try:
-        success, logic = run_mission(env, archive, goal, GridPlanner(grid), lookahead=0.6,
-                                     detector_config=DetectorConfig(), max_steps=max_steps,
-                                     on_step=on_step, reset_on_fall=True,
-                                     on_detection=policy, adapt_on_start=adapt_on_start)
+        run = run_mission(env, make_sela(archive, {'planner.lookahead': 0.6}), [goal],
+                          GridPlanner(default_grid()), detector_config=DetectorConfig(),
+                          stepper_config=StepperConfig(max_steps=max_steps,
+                                                       on_detection=policy,
+                                                       adapt_on_start=adapt_on_start),
+                          on_step=on_step)
     finally:
-        robot.close()
-    detections = sum(r.detected for r in logic.records)
-    return success, len(logic.records), detections
+        env.close()
+    detections = sum(r.detected for r in run.logic.records)
+    return run.success, run.steps, detections
 
 
 def main():

@@ -4,7 +4,7 @@
 # kill, a reboot, or on another machine where the checkpoint and its .journal folder were
 # copied to $MAPBUILD_DIR). Progress goes to $MAPBUILD_DIR/build.log.
 #
-#   scripts/build_map8d.sh                       # 1 local worker, /work/mapbuild
+#   scripts/build_map8d.sh                       # 1 local worker, ~/.cache/sela_ros/mapbuild
 #   WORKERS=16 MAPBUILD_DIR=~/mapbuild scripts/build_map8d.sh
 #   DASK=tcp://scheduler:8786 scripts/build_map8d.sh
 #   setsid nohup nice -n 10 scripts/build_map8d.sh >/dev/null 2>&1 </dev/null &  # survives a logout
@@ -14,7 +14,7 @@
 # CVT with every elite found so far carried into it (--regrid), a smaller one is refused.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-MAPBUILD_DIR=${MAPBUILD_DIR:-/work/mapbuild}
+MAPBUILD_DIR=${MAPBUILD_DIR:-${XDG_CACHE_HOME:-$HOME/.cache}/sela_ros/mapbuild}
 EVALUATIONS=${EVALUATIONS:-200000}
 CELLS=${CELLS:-60000}
 SEED=${SEED:-1}

@@ -17,6 +17,9 @@ import numpy as np
 
 from sim_bridge.hexapod import generic_reward  # afun, the same as the simulator's
 
+#: Sim seconds a fallen robot takes to get up where it lies (one gait's time).
+RIGHTING_TIME = 3.0
+
 
 @dataclass
 class Execution:
@@ -40,11 +43,13 @@ class ObservedHexapod:
         robot: the simulated hexapod (owns physics, damage and sim time).
         noise_std: standard deviation (m) of the Gaussian noise on observed positions.
         seed: seed of the observation noise generator.
-        right_on_fall: after a gait that ends fallen or flipped, rebuild the robot standing
-            where it lies (the step still counts, and is reported as fallen).
+        right_on_fall: after a gait that ends fallen or flipped, the robot gets up where it
+            lies (the step still counts, and is reported as fallen); False: it stays down.
+        righting_time: sim seconds that getting up takes.
     """
 
-    def __init__(self, robot, noise_std=0.0, seed=0, right_on_fall=True):
+    def __init__(self, robot, noise_std=0.0, seed=0, right_on_fall=True,
+                 righting_time=RIGHTING_TIME):
         noise_std = float(noise_std)
         if not (math.isfinite(noise_std) and noise_std >= 0.0):
             raise ValueError(f'noise_std must be a finite number >= 0, got {noise_std}')
@@ -52,6 +57,7 @@ class ObservedHexapod:
         self.noise_std = noise_std
         self.rng = np.random.default_rng(seed)
         self.right_on_fall = bool(right_on_fall)
+        self.righting_time = float(righting_time)
         self.falls = 0
         self._observed = self._observe(self.robot.pose())
 
@@ -81,7 +87,7 @@ class ObservedHexapod:
         if outcome.fallen:
             self.falls += 1
             if self.right_on_fall:
-                self.robot.set_damage(self.robot.damage)  # rebuilt standing at x, y, yaw
+                self.robot.right(self.righting_time)
         observed_start = self._observed
         observed_end = self._observe(outcome.end_pose)
         self._observed = observed_end

@@ -6,9 +6,9 @@ toy world: ``execute(index)`` runs gait ``index`` of the archive from wherever t
 stands (never a reset inside a replicate), and position observations carry the paper's
 Gaussian noise (:class:`sim_bridge.environment.ObservedHexapod`).
 
-A fallen robot (see :meth:`Hexapod.is_fallen`) is righted in place after the gait that
-tipped it: the body is rebuilt standing at its x, y and yaw. The gait still counts as a
-step; :attr:`HexapodEnvironment.falls` counts them.
+A fallen robot (see :meth:`Hexapod.is_fallen`) gets up where it lies after the gait that
+tipped it (:meth:`Hexapod.right`), as the ``sim_bridge`` node's robot does by default. The
+gait still counts as a step; :attr:`HexapodEnvironment.falls` counts them.
 
 :func:`oracle_table` evaluates every archive gait on the damaged robot from a standing
 start (``evaluate_gait``), in parallel, cached on disk per (archive checksum, damage,
@@ -96,11 +96,11 @@ class HexapodEnvironment:
         if not 0 <= index < len(self.params):
             raise IndexError(f'gait index {index} outside the archive (0..{len(self.params) - 1})')
         start = time.perf_counter()
+        # A fallen robot gets up where it lies (ObservedHexapod): the observation after the
+        # gait stays valid.
         execution = self.observed.execute(self.params[index])
         if execution.fallen:
             self.falls += 1
-            # Right it where it lies: the observation after the gait stays valid.
-            self.robot.set_damage(self.robot.damage)
         self.sim_seconds += time.perf_counter() - start
         return self.observed.observed_pose()
 

@@ -259,6 +259,12 @@ class Hexapod:
         p.restoreState(self._standing_state, physicsClientId=self._client)
         self.standing = True
 
+    def right(self, duration: float = 0.0) -> None:
+        """Get up where it lies: rebuilt standing at the current x, y and yaw (the damage
+        kept); getting up takes ``duration`` seconds of sim time."""
+        self.set_damage(self.damage)
+        self._sim_time += max(0.0, float(duration))
+
     def set_damage(self, damage) -> DamageSpec:
         """Apply ``damage`` now: rebuild the body, standing, at the current x, y and yaw."""
         spec = parse_damage(damage)

@@ -32,7 +32,7 @@ from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 from sim_bridge.damage import DamageSpecError, parse_damage
-from sim_bridge.environment import ObservedHexapod
+from sim_bridge.environment import RIGHTING_TIME, ObservedHexapod
 from sim_bridge.hexapod import Hexapod
 from sim_bridge.model import hexapod_urdf
 from sim_bridge.settings import SIM_DEFAULTS, read_archive_settings
@@ -74,10 +74,12 @@ PARAMETERS = (
     Spec('observation.noise_std', 0.01, 'std of the Gaussian noise on observed positions',
          low=0.0, high=1.0, unit=' m'),
     Spec('seed', 0, 'seed of the observation noise', low=0, high=2**31 - 1, read_only=True),
-    # False: a fallen robot stays down until /sim_bridge/reset (the adapter calls it);
-    # True: rebuilt standing where it lies after the gait (no adapter needed).
-    Spec('right_on_fall', False, 'true: a fallen robot is rebuilt standing where it lies; '
-         'false: it stays down until /sim_bridge/reset', read_only=True),
+    # A real robot that falls gets up where it lies; staying down until /sim_bridge/reset
+    # (the adapter's reset_on_fall) is for episodic set-ups.
+    Spec('right_on_fall', True, 'true: a fallen robot gets up where it lies (taking '
+         'righting_time); false: it stays down until /sim_bridge/reset', read_only=True),
+    Spec('righting_time', RIGHTING_TIME, 'sim time a fallen robot takes to get up',
+         low=0.0, high=600.0, unit=' s', read_only=True),
 )
 
 
@@ -93,7 +95,8 @@ class SimBridge(Node):
                         solver_iterations=values['sim.solver_iterations'],
                         damage=damage, gui=values['sim.gui'])
         self.env = ObservedHexapod(robot, values['observation.noise_std'], seed=values['seed'],
-                                   right_on_fall=values['right_on_fall'])
+                                   right_on_fall=values['right_on_fall'],
+                                   righting_time=values['righting_time'])
         self.publish_period = values['publish_period']
         self.publish_max_rate = values['publish_max_rate']
         self.right_on_fall = values['right_on_fall']

@@ -158,49 +158,98 @@ def test_map_file_errors(tmp_path):
 
 
 class _FakeRobot:
-    """Gait i moves the robot by ``grs[i]`` in its frame; gait ``falls`` tips it over."""
+    """Gait i moves the robot by ``grs[i]`` in its frame; gait ``tips`` tips it over (it
+    gets up where it lies)."""
 
-    def __init__(self, grs, falls=None):
-        self.grs, self.falls, self.pose, self.resets = grs, falls, np.zeros(3), 0
+    def __init__(self, grs, tips=None):
+        self.grs, self.tips, self.pose, self.resets, self.falls = grs, tips, np.zeros(3), 0, 0
 
     def true_pose(self):
         return self.pose.copy()
 
+    observed_pose = true_pose
+
     def reset(self):
         self.pose, self.resets = np.zeros(3), self.resets + 1
 
-    def execute(self, params):
-        from types import SimpleNamespace
-
+    def execute(self, index):
         from sela_ros.core.geometry import se2_compose
 
-        index = int(params[0])
         self.pose = se2_compose(self.pose, self.grs[index])
-        return SimpleNamespace(observed_generic_reward=self.grs[index], observed_end=self.pose,
-                               fallen=index == self.falls, true_end=self.pose)
+        self.falls += int(index == self.tips)
+        return self.pose.copy()
 
 
-def test_run_mission_drives_the_stepper_to_the_goal_and_resets_a_fallen_robot():
+@pytest.mark.parametrize('reset_on_fall', [False, True])
+def test_run_mission_drives_the_stepper_to_the_goal_after_a_fall(reset_on_fall):
     from types import SimpleNamespace
 
+    from sela_ros.core.learning import make_sela
     from sela_ros.core.mission import run_mission
     from sela_ros.core.planning import straight_line_planner
+    from sela_ros.core.stepper_io import StepperConfig
 
     rng = np.random.default_rng(3)
     descriptors = rng.random((40, 2))
     grs = np.column_stack([descriptors * 0.4 - 0.1, np.zeros(40)])
     # The gait that lands nearest the first waypoint (0.3, 0) tips the robot over.
-    falls = int(np.argmin(np.hypot(grs[:, 0] - 0.3, grs[:, 1])))
-    params = np.zeros((40, 36))
-    params[:, 0] = np.arange(40)
-    archive = SimpleNamespace(params=params, generic_reward=grs, kernel_sigma=0.1,
+    tips = int(np.argmin(np.hypot(grs[:, 0] - 0.3, grs[:, 1])))
+    archive = SimpleNamespace(params=np.zeros((40, 36)), generic_reward=grs, kernel_sigma=0.1,
                               normalised_descriptors=lambda: descriptors)
-    robot = _FakeRobot(grs, falls)
+    robot = _FakeRobot(grs, tips)
     steps = []
-    success, logic = run_mission(robot, archive, (1.0, 0.0), straight_line_planner,
-                                 lookahead=0.3, max_steps=30, adapt_on_start=True,
-                                 reset_on_fall=True, on_step=steps.append)
-    assert success and steps == logic.records
-    assert logic.records[0].behavior_index == falls and logic.records[0].fallen
-    assert robot.resets >= 1 and logic.records[1].pose == [0.0, 0.0, 0.0]  # from the start
+    run = run_mission(robot, make_sela(archive, {'planner.lookahead': 0.3}), [(1.0, 0.0)],
+                      straight_line_planner, on_step=steps.append,
+                      stepper_config=StepperConfig(max_steps=30, adapt_on_start=True,
+                                                   reset_on_fall=reset_on_fall))
+    assert run.success and run.end.code == 'succeeded' and steps == run.logic.records
+    first = run.logic.records[0]
+    assert first.behavior_index == tips and first.fallen and run.falls >= 1
+    if reset_on_fall:  # episodic: back at the start
+        assert robot.resets >= 1 and run.logic.records[1].pose == [0.0, 0.0, 0.0]
+    else:  # got up where it lay: the next step starts where the first one ended
+        assert robot.resets == 0
+        np.testing.assert_allclose(run.logic.records[1].pose, grs[tips], atol=1e-12)
     assert np.hypot(*(robot.pose[:2] - (1.0, 0.0))) < 0.1
+    assert run.goal_steps == [run.steps]
+
+
+def test_run_mission_ends_at_once_with_the_reason_when_the_goal_cannot_be_planned():
+    from types import SimpleNamespace
+
+    from sela_ros.core.learning import make_sela
+    from sela_ros.core.maps import default_grid
+    from sela_ros.core.mission import run_mission
+    from sela_ros.core.planning import GridPlanner
+
+    descriptors = np.random.default_rng(0).random((10, 2))
+    archive = SimpleNamespace(params=np.zeros((10, 36)), kernel_sigma=0.1,
+                              generic_reward=np.column_stack([descriptors, np.zeros(10)]),
+                              normalised_descriptors=lambda: descriptors)
+    robot = _FakeRobot(archive.generic_reward)
+    run = run_mission(robot, make_sela(archive), [(40.0, 0.0)], GridPlanner(default_grid()))
+    assert not run.success and run.steps == 0
+    assert run.end.code == 'no_plan' and 'off the map' in run.end.reason
+
+
+def test_a_robot_that_starts_off_the_planners_map_is_led_onto_it_and_reaches_the_goal():
+    from types import SimpleNamespace
+
+    from sela_ros.core.learning import make_sela
+    from sela_ros.core.mission import run_mission
+    from sela_ros.core.planning import GridPlanner, OccupancyGrid
+    from sela_ros.core.stepper_io import StepperConfig
+
+    rng = np.random.default_rng(5)
+    descriptors = rng.random((60, 2))
+    grs = np.column_stack([descriptors * 0.5 - 0.25, np.zeros(60)])
+    archive = SimpleNamespace(params=np.zeros((60, 36)), generic_reward=grs, kernel_sigma=0.1,
+                              normalised_descriptors=lambda: descriptors)
+    grid = OccupancyGrid.empty(0.5, 2.5, 0.5, 2.5, 0.05)  # the start (0, 0) is off it
+    assert not grid.in_map((0.0, 0.0))
+    robot = _FakeRobot(grs)
+    run = run_mission(robot, make_sela(archive, {'planner.lookahead': 0.3}), [(1.5, 1.2)],
+                      GridPlanner(grid), stepper_config=StepperConfig(max_steps=40,
+                                                                      adapt_on_start=True))
+    assert run.success and run.end.code == 'succeeded', run.end
+    assert np.hypot(*(robot.pose[:2] - (1.5, 1.2))) < 0.1

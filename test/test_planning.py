@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from sela_ros.core.planning import (
+    AStarPlanner,
     GridPlanner,
     InObstacleError,
     OccupancyGrid,
@@ -152,3 +153,21 @@ def test_a_goal_inside_an_obstacle_is_still_refused_with_inflation():
     # Within the margin but not in the obstacle: reached.
     path = planner((0.5, 0.5), (1.4, 0.5))
     assert np.allclose(path[-1], (1.4, 0.5))
+
+
+@pytest.mark.parametrize('make', [AStarPlanner, GridPlanner])
+@pytest.mark.parametrize('start', [(-1.3, 2.0), (5.5, -2.0), (2.0, 9.0)])
+def test_a_robot_off_the_map_is_led_back_onto_it(make, start):
+    grid = _grid_with_block()
+    planner = make(grid, inflation=0.2)
+    path = planner(start, (0.5, 2.0))
+    assert np.allclose(path[0], start) and np.allclose(path[-1], (0.5, 2.0))
+    entry = grid.world_to_cell(path[1])  # the first point is on the map, in free space
+    assert planner.planning_grid.is_free(entry)
+    # ... and it is the map's edge nearest to the robot (no free cell is nearer).
+    free = np.argwhere(~planner.planning_grid.occupied)[:, ::-1]
+    centres = grid.cell_to_world(free)
+    nearest = np.min(np.hypot(*(centres - start).T))
+    assert np.hypot(*(path[1] - start)) <= nearest + grid.resolution * 1.5
+    with pytest.raises(PlanningError, match='not finite'):
+        planner((np.nan, 0.0), (0.5, 2.0))

@@ -63,43 +63,35 @@ def _config():
         return {k.removeprefix('/**/'): v for k, v in yaml.safe_load(handle).items()}
 
 
-def _in_process_mission(damage, seed, goal, on_step=None):
-    """The same mission, same configuration, run in process (no DDS)."""
+def _experiment_runner_mission(damage, seed, goal):
+    """The same mission through the experiment runner (``sela-experiment hexapod``'s SELA
+    replicate, no DDS), with the sim_bridge node's noise seed."""
     from sela_ros.core.damage_detection import DetectorConfig
-    from sela_ros.core.mission import run_mission
-    from sela_ros.core.planning import GridPlanner
-    from sela_ros.nodes.planner_node import grid_from_description
-    from sim_bridge.environment import ObservedHexapod
-    from sim_bridge.hexapod import Hexapod
+    from sela_ros.core.maps import DEFAULT_INFLATION, DEFAULT_MAP
+    from sela_ros.core.sela_config import SELAConfig
+    from sela_ros.core.stepper_io import StepperConfig
+    from sela_ros.experiments import arguments
+    from sela_ros.experiments.hexapod import Job, run_method
 
+    # The runner's defaults are the shipped configuration's: the same map, the same
+    # settings, so the same decisions.
     cfg = _config()
     bridge = cfg['sim_bridge']['ros__parameters']
     plan = cfg['planner']['ros__parameters']
     adapter = cfg['sela_adapter']['ros__parameters']
     detector = cfg['damage_detector']['ros__parameters']
-    archive = load_archive(default_archive_path())  # sim_bridge's archive "": the same
-    physics = archive.simulator_settings
-    env = ObservedHexapod(Hexapod(dt=physics['dt'], gait_duration=physics['gait_duration'],
-                                  solver_iterations=physics['solver_iterations'],
-                                  damage=damage), bridge['observation.noise_std'], seed=seed,
-                          right_on_fall=bridge['right_on_fall'])
-    grid = grid_from_description(plan['map.resolution'], plan['map.origin'], plan['map.width'],
-                                 plan['map.height'], plan.get('map.obstacles', []))
-    sela_config = {k: adapter[k] for k in ('gp.kernel.sigma', 'gp.noise',
-                                           'acquisition.ucb.alpha', 'goal.eps',
-                                           'planner.horizon')}
-    sela_config.update({'priors.max.misfit': adapter['priors.max_misfit'],
-                        'priors.max.misfit.reproduced': adapter['priors.max_misfit_reproduced']})
-    from sela_ros.core.damage_priors import resolve_priors  # the adapter's, as it loads them
-    priors = resolve_priors(adapter['priors.tables'], default_archive_path(), archive.params)
-    assert priors is not None and len(priors) == 6
-    det = DetectorConfig(**{k.split('.', 1)[1]: v for k, v in detector.items()
-                            if k.startswith('detection.')})
-    planner = GridPlanner(grid, inflation=plan['planner.inflation'])
-    return run_mission(env, archive, goal, planner,
-                       lookahead=plan['planner.lookahead'], sela_config=sela_config,
-                       detector_config=det, max_steps=adapter['max_steps'], on_step=on_step,
-                       reset_on_fall=adapter['reset_on_fall'], priors=priors)
+    assert bridge['right_on_fall'] and not adapter['reset_on_fall']
+    assert bridge['observation.noise_std'] == arguments.DEFAULT_NOISE_STD
+    assert (plan['map.resolution'], tuple(plan['map.origin']), plan['map.width'],
+            plan['map.height']) == tuple(DEFAULT_MAP.values()) and 'map.obstacles' not in plan
+    assert plan['planner.inflation'] == DEFAULT_INFLATION
+    assert adapter['planner.lookahead'] == SELAConfig.planner_lookahead
+    assert adapter['priors.tables'] == 'auto' and adapter['max_steps'] == StepperConfig.max_steps
+    assert adapter['adaptation.on_detection'] == StepperConfig.on_detection
+    assert {k.split('.', 1)[1]: v for k, v in detector.items()
+            if k.startswith('detection.')} == vars(DetectorConfig())
+    return run_method(Job('sela', np.random.SeedSequence(seed), str(default_archive_path()),
+                          damage, tuple(goal), noise_seed=seed))
 
 
 @pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'remove:middle_right',
@@ -126,11 +118,10 @@ def test_damaged_mission_reaches_goal_with_the_in_process_decisions(graph):
     # The final observed pose is within goal.eps of the goal.
     end = watcher.steps[-1].end_pose
     assert np.hypot(end[0] - goal[0], end[1] - goal[1]) < 0.1
-    # Same seed, same decisions: the DDS mission took the in-process mission's gaits.
-    success, logic = _in_process_mission('remove:middle_right', 7, goal)
-    assert success
-    assert [s.behavior_index for s in watcher.steps] == \
-        [r.behavior_index for r in logic.records]
+    # Same seed, same decisions: the DDS mission took the experiment runner's gaits.
+    runner = _experiment_runner_mission('remove:middle_right', 7, goal)
+    assert runner['success']
+    assert [s.behavior_index for s in watcher.steps] == runner['behaviors']
 
 
 def _set_param(client, node, name, value):
@@ -148,8 +139,8 @@ def test_every_service_answers(graph):
     reset = client.call(reset_cli, Trigger.Request())
     assert reset.success and 'start' in reset.message
 
-    # The plan ends at the waypoint (planner.lookahead along the path); the full path to the
-    # goal is on planner/path.
+    # make_plan answers as GetPlan promises: the whole path to the goal (also published on
+    # planner/path); a start off the map is led back onto it.
     paths = []
     ifc.subscription(node, ifc.PATH, paths.append)
     plan_cli = ifc.client(node, ifc.MAKE_PLAN)
@@ -157,12 +148,14 @@ def test_every_service_answers(graph):
     request.start = conv.pose_stamped((0.0, 0.0), frame_id='odom')
     request.goal = conv.pose_stamped((1.0, 1.5), frame_id='odom')
     plan = conv.path_from_msg(client.call(plan_cli, request).plan)
-    lookahead = _config()['planner']['ros__parameters']['planner.lookahead']
     assert len(plan) >= 2 and np.allclose(plan[0], 0, atol=0.05)
-    assert np.hypot(*plan[-1]) == pytest.approx(lookahead, abs=0.05)  # no obstacle: a line
-    client.spin_until(lambda: paths and len(paths[-1].poses) >= 2, 20, 'the full path')
-    path = conv.path_from_msg(paths[-1])
-    assert np.allclose(path[-1], [1.0, 1.5], atol=0.05) and np.allclose(path[0], 0, atol=0.05)
+    assert np.allclose(plan[-1], [1.0, 1.5], atol=1e-6)
+    client.spin_until(lambda: paths and len(paths[-1].poses) >= 2, 20, 'the published path')
+    assert np.allclose(conv.path_from_msg(paths[-1]), plan)
+    request.start = conv.pose_stamped((-9.0, 1.0), frame_id='odom')  # off the map
+    plan = conv.path_from_msg(client.call(plan_cli, request).plan)
+    assert np.allclose(plan[0], (-9.0, 1.0)) and np.allclose(plan[-1], [1.0, 1.5], atol=1e-6)
+    request.start = conv.pose_stamped((0.0, 0.0), frame_id='odom')
     request.goal = conv.pose_stamped((50.0, 0.0), frame_id='odom')  # off the map
     assert client.call(plan_cli, request).plan.poses == []
 

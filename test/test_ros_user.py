@@ -65,22 +65,22 @@ def test_parameters_are_described_and_take_an_integer_for_a_double(client):
     try:
         describe = client.node.create_client(DescribeParameters, '/planner/describe_parameters')
         answer = client.call(describe, DescribeParameters.Request(
-            names=['planner.lookahead', 'map.resolution']))
-        lookahead, resolution = answer.descriptors
-        assert 'waypoint' in lookahead.description
-        (span,) = lookahead.floating_point_range
-        assert span.from_value > 0 and span.to_value >= 5.0
-        assert not lookahead.read_only and resolution.read_only
-        # `ros2 param set /planner planner.lookahead 1`: an integer, stored as a double.
+            names=['planner.inflation', 'map.resolution']))
+        inflation, resolution = answer.descriptors
+        assert 'clearance' in inflation.description
+        (span,) = inflation.floating_point_range
+        assert span.from_value == 0.0 and span.to_value >= 5.0
+        assert not inflation.read_only and resolution.read_only
+        # `ros2 param set /planner planner.inflation 1`: an integer, stored as a double.
         one = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=1)
-        assert _set(client, 'planner', 'planner.lookahead', one).successful
+        assert _set(client, 'planner', 'planner.inflation', one).successful
         get = client.node.create_client(GetParameters, '/planner/get_parameters')
-        (value,) = client.call(get, GetParameters.Request(names=['planner.lookahead'])).values
+        (value,) = client.call(get, GetParameters.Request(names=['planner.inflation'])).values
         assert value.type == ParameterType.PARAMETER_DOUBLE and value.double_value == 1.0
         text = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='abc')
-        result = _set(client, 'planner', 'planner.lookahead', text)
+        result = _set(client, 'planner', 'planner.inflation', text)
         assert not result.successful
-        assert result.reason == "planner.lookahead must be a number in [0.01, 100] m, got 'abc'"
+        assert result.reason == "planner.inflation must be a number in [0, 10] m, got 'abc'"
         result = _set(client, 'planner', 'map.resolution',
                       ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.1))
         assert not result.successful and 'read-only' in result.reason
@@ -92,8 +92,8 @@ def test_parameters_are_described_and_take_an_integer_for_a_double(client):
     ('sim_bridge', ['-p', 'seed:=abc'],
      "[ERROR] [sim_bridge]: seed must be an integer in [0, 2147483647], got 'abc' "
      '(not started)'),
-    ('planner', ['-p', 'planner.lookahead:=abc'],
-     "[ERROR] [planner]: planner.lookahead must be a number in [0.01, 100] m, got 'abc' "
+    ('planner', ['-p', 'planner.inflation:=abc'],
+     "[ERROR] [planner]: planner.inflation must be a number in [0, 10] m, got 'abc' "
      '(not started)'),
     ('damage_detector', ['-p', 'detection.window:=0'],
      '[ERROR] [damage_detector]: Parameter detection.window out of range. Min: 1, Max: 1000, '
@@ -108,10 +108,10 @@ def test_a_bad_start_up_parameter_ends_the_node_with_one_line(ros_env, node, arg
 
 
 def test_an_integer_for_a_double_at_start_up_is_taken(ros_env, client):
-    nodes = NodeProcesses({'planner': {'planner.lookahead': 1}}, names=('planner',))
+    nodes = NodeProcesses({'planner': {'planner.inflation': 1}}, names=('planner',))
     try:
         get = client.node.create_client(GetParameters, '/planner/get_parameters')
-        (value,) = client.call(get, GetParameters.Request(names=['planner.lookahead']),
+        (value,) = client.call(get, GetParameters.Request(names=['planner.inflation']),
                                timeout=60).values
         assert value.type == ParameterType.PARAMETER_DOUBLE and value.double_value == 1.0
     finally:

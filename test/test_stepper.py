@@ -11,11 +11,13 @@ from sela_ros.core.sela import SELA, SE2Motion
 from sela_ros.core.stepper import MissionStepper
 from sela_ros.core.stepper_io import (
     AdaptRequested,
+    CancelRequested,
     ClearRequested,
     GoalReceived,
     GoalsReceived,
     HoldChanged,
     Level,
+    MissionEnded,
     OutcomeReceived,
     PlanReceived,
     PoseObserved,
@@ -190,11 +192,17 @@ def test_a_goal_that_cannot_be_planned_is_refused_and_not_retried_after_a_restar
     d = Driver()
     request = d.start()
     out = d(PlanReceived(request.step, tuple(request.start), None, 'goal in an obstacle'))
-    assert d.state is State.IDLE and not of(out, SendGait) and d.stepper.steps == 0
+    # The mission ends at once, with a result that says why.
+    assert d.state is State.DONE and not of(out, SendGait) and d.stepper.steps == 0
     assert 'goal in an obstacle' in only(out, Report).message
+    end = only(out, MissionEnded)
+    assert (end.success, end.code, end.mission_id) == (False, 'no_plan', 1)
+    assert 'goal in an obstacle' in end.reason
+    assert of(out, PublishStatus)[-1].values['success'] == 'False'
     restarted = Driver()
     restarted.stepper.restore(of(out, SaveState)[-1].snapshot, 0.0)
-    assert restarted(PoseObserved((0.0, 0.0, 0.0))) == [] and restarted.state is State.IDLE
+    assert not of(restarted(PoseObserved((0.0, 0.0, 0.0))), SendGait)
+    assert restarted.state in (State.IDLE, State.DONE)
 
 
 def test_a_late_verdict_still_adapts():
@@ -234,7 +242,7 @@ def test_a_verdict_heard_before_its_outcome_is_applied_with_it():
 
 
 def test_adapt_asked_mid_gait_starts_from_that_gait_and_again_restarts_from_scratch():
-    d = Driver()
+    d = Driver(on_detection='reset')
     gait = only(d.plan(d.start()), SendGait)
     reply = only(d(AdaptRequested()), Reply)
     assert reply.success and 'from the outcome of command 1' in reply.message
@@ -272,7 +280,8 @@ def test_the_same_goal_again_goes_on_and_a_new_one_starts_over():
     assert d.stepper.steps == 1
     gait = only(d.plan(request), SendGait)
     out = d(GoalReceived((0.0, 1.0)))
-    assert only(out, PublishStatus).values['goal'] == '0.000000 1.000000'
+    assert only(out, MissionEnded).code == 'preempted'  # the old mission's result
+    assert of(out, PublishStatus)[-1].values['goal'] == '0.000000 1.000000'
     assert d.stepper.steps == 0 and d.state is State.EXECUTING  # the gait in flight ends
     assert only(d.outcome(gait), RequestPlan).goal.tolist() == [0.0, 1.0]
 
@@ -370,7 +379,7 @@ def test_the_same_goal_sent_before_a_restored_mission_is_checked_is_a_new_missio
     d = Driver(adapt_on_start=True)
     d.stepper.restore(snapshot, 0.0)
     out = d(GoalReceived((1.0, 0.0)))  # the mission's own goal
-    assert only(out, PublishStatus).message == 'new goal'
+    assert of(out, PublishStatus)[-1].message == 'new goal'
     out = d(PoseObserved((1.0, 1.0, 0.0), stamp=0.0))  # far from where the state file says
     assert not any('dropped' in r.message for r in of(out, Report))
     request = only(out, RequestPlan)
@@ -383,7 +392,7 @@ def test_a_goal_sent_while_a_restored_gait_is_in_flight_survives_the_gait_never_
     before, gait, snapshot = _saved_mid_mission()
     d = Driver(outcome_timeout=5.0)
     d.stepper.restore(snapshot, 0.0)
-    assert only(d(GoalReceived(goal)), PublishStatus).message == 'new goal'
+    assert of(d(GoalReceived(goal)), PublishStatus)[-1].message == 'new goal'
     assert d.state is State.EXECUTING  # the gait in flight is still awaited
     d(PoseObserved((2.0, 2.0, 0.0)))
     out = d(Tick(), dt=6.0)  # it never answers, and the robot is elsewhere
@@ -557,3 +566,51 @@ def test_a_result_and_a_goal_taken_are_announced_after_their_saves():
     saves = [i for i, c in enumerate(out) if isinstance(c, SaveState)
              and c.snapshot['mission']['state'] == 'done']
     assert saves and saves[0] < finals[0], out
+
+
+def test_the_waypoints_are_taken_off_the_whole_path_lookahead_along_it():
+    d = Driver()
+    request = d.start(goal=(2.0, 0.0))
+    lookahead = d.stepper.sela.config.planner_lookahead
+    # An L-shaped path: the waypoint is measured along it, not as the crow flies.
+    path = ((0.0, 0.0), (0.2, 0.0), (0.2, 1.0), (2.0, 1.0), (2.0, 0.0))
+    gait = only(d(PlanReceived(request.step, tuple(request.start), path=path)), SendGait)
+    np.testing.assert_allclose(gait.waypoint, (0.2, lookahead - 0.2))
+    assert d.stepper.pending.decision.waypoint.tolist() == list(gait.waypoint)
+
+
+def test_a_cancel_ends_the_mission_after_the_running_gait_and_no_gait_follows():
+    d = Driver()
+    gait = only(d.plan(d.start()), SendGait)
+    out = d(CancelRequested())
+    assert only(out, Reply).success and not of(out, MissionEnded)
+    out = d.outcome(gait) + d(VerdictReceived(gait.behavior_id, False))
+    end = only(out, MissionEnded)
+    assert (end.success, end.code, end.steps) == (False, 'canceled', 1)
+    assert not of(out, SendGait) and not of(out, RequestPlan) and d.state is State.DONE
+    assert of(d(Tick(), dt=100.0), SendGait) == []
+    assert not only(d(CancelRequested()), Reply).success  # nothing left to cancel
+
+
+def test_a_new_goal_preempts_the_mission_and_the_gait_in_flight_is_still_learnt():
+    d = Driver(adapt_on_start=True)
+    gait = only(d.plan(d.start(goal=(1.0, 0.0))), SendGait)
+    out = d(GoalReceived((0.0, 1.0)))
+    end = only(out, MissionEnded)
+    assert (end.success, end.code, end.mission_id) == (False, 'preempted', 1)
+    assert d.stepper.mission_id == 2 and d.state is State.EXECUTING
+    d.outcome(gait)  # the old command's outcome is still taken and learnt
+    assert d.stepper.sela.observations[0].tolist() == [gait.index]
+    # The same goal again is no preemption: the mission goes on.
+    assert not of(d(GoalReceived((0.0, 1.0))), MissionEnded)
+
+
+def test_a_planner_that_never_answers_ends_the_mission_with_the_reason():
+    d = Driver(plan_timeout=1.0, plan_attempts=3)
+    d.start()
+    ends = []
+    for _ in range(10):
+        ends += of(d(Tick(), dt=1.5), MissionEnded)
+    end = only(ends, MissionEnded)
+    assert end.code == 'no_plan' and 'did not answer 3' in end.reason
+    assert d.state is State.DONE and d.stepper.steps == 0

@@ -98,6 +98,12 @@ class OccupancyGrid:
                               f'({self.bounds_text()})')
         return int(ix), int(iy)
 
+    def nearest_cell(self, xy):
+        """The map's cell nearest to ``xy`` (its own cell when on the map)."""
+        xy = np.asarray(xy, dtype=float).reshape(-1)[:2]
+        ix, iy = np.floor((xy - self.origin) / self.resolution)
+        return (int(np.clip(ix, 0, self.width - 1)), int(np.clip(iy, 0, self.height - 1)))
+
     def cell_to_world(self, cell):
         """World ``(x, y)`` of the centre of cell ``(ix, iy)``."""
         return self.origin + (np.asarray(cell, dtype=float) + 0.5) * self.resolution
@@ -108,6 +114,15 @@ class OccupancyGrid:
         except OffMapError:
             return False
         return True
+
+    def goal_problem(self, xy):
+        """Why the goal ``xy`` cannot be planned to (off the map, inside an obstacle), or
+        None: the one rule the planner, the adapter and the experiments apply."""
+        if not self.in_map(xy):
+            return f'off the map ({self.bounds_text()})'
+        if not self.is_free(self.world_to_cell(xy)):
+            return 'inside an obstacle'
+        return None
 
     def is_free(self, cell) -> bool:
         ix, iy = cell

@@ -82,10 +82,12 @@ class MissionLogic:
         self.standing_next = False
         self.records = []
 
-    def decide(self, pose, waypoint, goal=None):
-        """The behaviour to execute from ``pose`` toward ``waypoint``; with ``goal``, SELA
-        may look one step further (``planner.horizon`` 2: :func:`following_waypoint`)."""
-        following = None if goal is None else following_waypoint(pose, waypoint, goal)
+    def decide(self, pose, waypoint, goal=None, following=None):
+        """The behaviour to execute from ``pose`` toward ``waypoint``; SELA may look one
+        step further (``planner.horizon`` 2) toward ``following``, the waypoint after it on
+        the path, or, with only ``goal`` known, :func:`following_waypoint`."""
+        if following is None and goal is not None:
+            following = following_waypoint(pose, waypoint, goal)
         return self.sela.ask(np.asarray(pose, dtype=float), waypoint=waypoint,
                              next_waypoint_xy=following, map_trusted=not self.adapting)
 
@@ -147,7 +149,7 @@ class MissionLogic:
             return True
         # 'evidence': the triggering gait had been learnt before and now does something
         # else: that is a new damage; a gait tried for the first time proves nothing.
-        index, latest, _ = self.last
+        index, latest = self.last[:2]  # a state file's may lack the standing flag
         indices, observed = self.sela.observations
         before = observed[:-1][indices[:-1] == index]
         if not len(before):

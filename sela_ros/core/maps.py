@@ -31,6 +31,18 @@ from sela_ros.core.planning import OccupancyGrid
 
 MAP_SERVER_MODES = ('trinary', 'scale', 'raw')
 
+#: The planner's map when none is given (the ``planner`` node's ``map.*`` defaults, and the
+#: experiments' without ``--map``): an empty 8 m square centred on the start, which holds every
+#: goal the README and docs use. Goals off it are refused by the nodes and the experiments.
+DEFAULT_MAP = {'resolution': 0.05, 'origin': (-4.0, -4.0), 'width': 8.0, 'height': 8.0}
+#: Clearance kept from obstacles (m): about half the hexapod's width, legs out.
+DEFAULT_INFLATION = 0.25
+
+
+def default_grid() -> OccupancyGrid:
+    """The :data:`DEFAULT_MAP` as a grid."""
+    return grid_from_description(obstacles=[], **DEFAULT_MAP)
+
 
 class MapError(ValueError):
     """A map file or map description that cannot be used, and why."""

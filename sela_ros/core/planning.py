@@ -234,14 +234,21 @@ class AStarPlanner:
     def __call__(self, start_xy, goal_xy) -> np.ndarray:
         start_xy = np.asarray(start_xy, dtype=float).reshape(-1)[:2]
         goal_xy = np.asarray(goal_xy, dtype=float).reshape(-1)[:2]
-        start = _endpoint_cell(self.grid, start_xy, 'start', in_obstacle_ok=True)
+        if not np.all(np.isfinite(start_xy)):
+            raise PlanningError(f'start ({start_xy[0]:g}, {start_xy[1]:g}) is not finite')
         goal = _endpoint_cell(self.grid, goal_xy, 'goal')  # in a real obstacle: refused
+        # A robot off the map (it walked off, or started there) is led back onto it, from
+        # the map's cell nearest to it, as a robot in an obstacle is led out of it.
+        on_map = self.grid.in_map(start_xy)
+        start = (_endpoint_cell(self.grid, start_xy, 'start', in_obstacle_ok=True) if on_map
+                 else self.grid.nearest_cell(start_xy))
         free_start, free_goal, cells = self._cells(start, goal)
         grid = self.planning_grid
         middle = grid.cell_to_world(np.asarray(cells[1:-1], dtype=float).reshape(-1, 2))
         points = [start_xy[None]]
-        if free_start != start:
-            points.append(grid.cell_to_world(free_start)[None])  # out of the obstacle first
+        leave = free_start != start or not on_map
+        if leave:
+            points.append(grid.cell_to_world(free_start)[None])  # onto free space first
         points.append(middle)
         if free_goal != goal and len(cells) > 1:
             points.append(grid.cell_to_world(free_goal)[None])
@@ -250,7 +257,7 @@ class AStarPlanner:
         if not self.smooth:
             return path
         # Smooth the part that lies in free space; the way out of an obstacle stays as is.
-        k = 1 if free_start != start else 0
+        k = 1 if leave else 0
         return np.vstack([path[:k], smooth_path(grid, path[k:], self.smooth_horizon)])
 
     def _no_free_cell(self):

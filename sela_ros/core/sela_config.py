@@ -24,7 +24,8 @@ class SELAConfig:
     gp_kernel_variance: float = gp.DEFAULT_VARIANCE
     gp_noise: float = gp.DEFAULT_NOISE
     acquisition_ucb_alpha: float = acquisition.DEFAULT_ALPHA
-    planner_lookahead: float = 0.1
+    # m along the path to the waypoint of the reward (hexapod: docs/hexapod_results.md)
+    planner_lookahead: float = 0.6
     # Steps looked ahead: 1, the paper's (the gait landing nearest the waypoint), or 2 (the
     # gait from whose predicted end pose the best next gait lands nearest a second waypoint
     # as far again along the path). Maps set their own (learning.archive_config).

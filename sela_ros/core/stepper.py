@@ -27,11 +27,13 @@ from sela_ros.core.mission_state import (
     restore_mission,
 )
 from sela_ros.core.mission_status import detection_status, mission_status
+from sela_ros.core.planning import next_waypoint
 from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
 from sela_ros.core.sela import prior_reason
 from sela_ros.core.stepper_io import (
     AskedPlan,
     Level,
+    MissionEnded,
     PendingStep,
     PublishReward,
     PublishStatus,
@@ -81,6 +83,8 @@ class MissionStepper:
         self._verdicts = {}  # behaviour id -> verdict heard before the outcome
         self.last_id = None  # id of the latest outcome processed
         self._deadline = None  # of the reset
+        self.cancel = None  # why the mission ends after the running gait (a cancel)
+        self._attempts = 1  # of the next plan request (the planner did not answer before)
         self.prior = 'intact'  # the GPs' prior mean: the intact map or a damage prior
         self._handlers = {
             io.GoalReceived: self._on_goal, io.GoalsReceived: self._on_goals,
@@ -88,7 +92,7 @@ class MissionStepper:
             io.OutcomeReceived: self._on_outcome, io.VerdictReceived: self._on_verdict,
             io.AdaptRequested: self._on_adapt, io.ClearRequested: self._on_clear,
             io.ResetDone: self._on_reset_done, io.HoldChanged: self._on_hold,
-            io.Tick: self._on_tick}
+            io.CancelRequested: self._on_cancel, io.Tick: self._on_tick}
 
     @property
     def sela(self):
@@ -114,12 +118,45 @@ class MissionStepper:
         return out
 
     def _on_goal(self, event, now):
-        return take_goals(self, [event.goal])
+        return self._take(event.goal, [event.goal])
 
     def _on_goals(self, event, now):
         if not event.goals:
             return [Report(Level.ERROR, 'goal path rejected: it has no poses')]
-        return take_goals(self, list(event.goals))
+        return self._take(event.goals[0], list(event.goals))
+
+    def _take(self, first, goals):
+        """A new mission: one that was running ends first (preempted), unless the new one
+        starts with the goal it is walking to (it goes on, with the new goals after)."""
+        out = []
+        if self.running():
+            same = (np.array_equal(np.asarray(first, dtype=float).reshape(-1)[:2], self.goal)
+                    and self.resume is None)
+            if not same:
+                out += self._end(False, 'preempted', 'preempted by a new goal',
+                                 self.current_pose())
+                if self.state is State.PLANNING:
+                    self.state = State.READY  # the new goal's plan is asked at once
+        self.cancel = None
+        return out + take_goals(self, goals)
+
+    def running(self):
+        """Whether a mission is under way (a goal, and not ended)."""
+        return self.goal is not None and self.state not in (State.IDLE, State.DONE)
+
+    def _on_cancel(self, event, now):
+        if not self.running():
+            return [Reply(False, 'no mission to cancel')]
+        if self.state is State.EXECUTING:
+            self.cancel = event.reason
+            message = (f'mission {self.mission_id} ends after the outcome of command '
+                       f'{self.pending.behavior_id}')
+            return [Report(Level.WARN, message), Reply(True, message)]
+        if self.state is State.PLANNING:
+            self.steps -= 1  # planned, never sent
+        self.state = State.READY
+        return self._end(False, 'canceled', event.reason, self.current_pose()) + [
+            Reply(True, f'mission {self.mission_id} canceled')]
 
     def _on_pose(self, event, now):
         pose = np.asarray(event.pose, dtype=float)
@@ -149,7 +186,17 @@ class MissionStepper:
         if plan is None or plan.step != event.step or not np.array_equal(
                 plan.start, np.asarray(event.start, dtype=float)):
             return []  # an answer to an older request
-        if event.waypoint is None:
+        path = None if event.path is None else np.asarray(event.path, dtype=float)
+        if path is not None and path.size:
+            # The waypoints the reward is built on, taken off the path here and only here.
+            path = path.reshape(-1, 2)
+            start, config = plan.start[:2], self.sela.config
+            plan.waypoint = next_waypoint(path, start, config.planner_lookahead)
+            if config.planner_horizon > 1:
+                second = next_waypoint(path, start, 2 * config.planner_lookahead)
+                if np.linalg.norm(second - plan.waypoint) > 1e-6:
+                    plan.following = second
+        elif event.waypoint is None:
             plan.refused = event.reason or 'no path'
         else:
             plan.waypoint = np.asarray(event.waypoint, dtype=float).reshape(-1)[:2]
@@ -182,7 +229,8 @@ class MissionStepper:
         # The next step's plan depends only on the pose: ask now, the planner works while
         # this step is learnt and judged.
         if (self.goal is not None and not self.sela.goal_reached(self.pose)
-                and self.steps < self.config.max_steps and not self.reset_needed):
+                and self.steps < self.config.max_steps and not self.reset_needed
+                and self.cancel is None):
             out.append(self._ask_plan(self.steps + 1, self.pose, now))
         p.record = self.logic.outcome(p.decision, p.pose, event.generic_reward,
                                       fallen=event.fallen, true_pose=event.true_pose,
@@ -276,8 +324,14 @@ class MissionStepper:
         if self.state is State.PLANNING and now > p.deadline:
             self.steps -= 1
             self.state = State.READY
-            self._plan = None
-            return [Report(Level.ERROR, 'planner did not answer; retrying')]
+            attempts, self._plan = self._plan.attempts, None
+            if attempts >= self.config.plan_attempts:
+                return self._end(False, 'no_plan', f'the planner did not answer {attempts} '
+                                 f'plan request(s) of {self.config.plan_timeout:g} s each',
+                                 self.current_pose())
+            self._attempts = attempts + 1
+            return [Report(Level.ERROR, f'planner did not answer; asking again '
+                           f'({attempts + 1}/{self.config.plan_attempts})')]
         if self.state is State.EXECUTING and now > p.deadline:
             if self.resume is not None and self.odom is not None and planar_distance(
                     self.odom, p.pose) > self.config.pose_tolerance:
@@ -306,6 +360,8 @@ class MissionStepper:
     def _start_step(self, now):
         if self.hold is not None or self.resume is not None or self.goal is None:
             return []
+        if self.cancel is not None:
+            return self._end(False, 'canceled', self.cancel, self.current_pose())
         if self.reset_needed:
             self.state = State.RESETTING
             self._deadline = now + self.config.outcome_timeout
@@ -331,21 +387,22 @@ class MissionStepper:
         return out + self._plan_ready(now)
 
     def _ask_plan(self, step, pose, now):
-        self._plan = AskedPlan(step, np.array(pose, dtype=float), now)
+        attempts, self._attempts = self._attempts, 1
+        self._plan = AskedPlan(step, np.array(pose, dtype=float), now, attempts=attempts)
         return RequestPlan(step, self._plan.start.copy(), self.goal.copy())
 
     def _plan_ready(self, now):
         plan, p = self._plan, self.pending
         if plan.refused:
             self.steps -= 1
-            self.state = State.IDLE  # a goal that cannot be planned is not retried
-            return [Report(Level.ERROR, f"no plan to the goal ({plan.refused}); waiting for "
-                           'a new goal'), self._save()]
+            self._plan = None
+            # A goal that cannot be planned is not retried: the mission ends, saying why.
+            return self._end(False, 'no_plan', f'no plan to the goal: {plan.refused}', p.pose)
         if plan.waypoint is None:
             return []
         self._plan = None
         p.waypoint = plan.waypoint
-        p.decision = self.logic.decide(p.pose, p.waypoint, self.goal)
+        p.decision = self.logic.decide(p.pose, p.waypoint, self.goal, following=plan.following)
         p.behavior_id = self.next_id
         self.next_id += 1
         p.t_sent = now
@@ -367,17 +424,32 @@ class MissionStepper:
         return next_goal(self, pose)
 
     def _finish(self, success, pose):
-        self.state = State.DONE
+        if success:
+            return self._end(True, 'succeeded', 'goal reached', pose)
+        return self._end(False, 'max_steps', f'goal not reached in {self.config.max_steps} '
+                         'steps', pose)
+
+    def _end(self, success, code, reason, pose):
+        """End the mission (said once, whatever ended it): the result, after its save.
+
+        A gait in flight (a mission preempted by a new one) is still awaited and learnt."""
+        if self.state not in (State.EXECUTING, State.VERDICT, State.RESETTING):
+            self.state = State.DONE
         self.result = success
-        message = ('goal reached' if success
-                   else f'goal not reached in {self.config.max_steps} steps')
+        self.cancel = None
+        where = '' if pose is None else f', pose ({pose[0]:.2f}, {pose[1]:.2f})'
+        reached = self.goal_index - (0 if success else 1)
         # Acknowledged means durable: the result is announced once its save is on disk (a
         # client that heard it and stops the adapter at once finds the mission done after a
         # restart, not half done).
-        return [Report(Level.OK, f'{message} after {self.steps} steps, pose '
-                       f'({pose[0]:.2f}, {pose[1]:.2f})'),
+        return [Report(Level.OK if success else Level.ERROR,
+                       f'{reason} after {self.steps} steps{where}'),
                 self._save(),
-                PublishStatus(Level.OK if success else Level.ERROR, message, self.status())]
+                PublishStatus(Level.OK if success else Level.ERROR, reason,
+                              dict(self.status(), code=code)),
+                MissionEnded(self.mission_id, success, code, reason, self.steps,
+                             None if pose is None else tuple(float(v) for v in pose),
+                             max(0, reached), max(1, self.goal_count))]
 
     # --- status and persistence ----------------------------------------------------------
 

@@ -36,10 +36,16 @@ class PoseObserved:
 
 @dataclass(frozen=True)
 class PlanReceived:
+    """The planner's answer: the whole path to the goal (``path``, as ``nav_msgs/GetPlan``
+    gives it), from which the stepper takes the waypoints (``planner.lookahead`` along it);
+    or, from a driver that only has one, the ``waypoint`` itself. Neither: no path
+    (``reason`` says why)."""
+
     step: int  # the ``step`` of the RequestPlan it answers
     start: tuple  # the ``start`` of that request
-    waypoint: tuple = None  # None: no path (``reason`` says why)
+    waypoint: tuple = None
     reason: str = ''
+    path: tuple = None  # ((x, y), ...) from the start to the goal
 
 
 @dataclass(frozen=True)
@@ -70,6 +76,14 @@ class AdaptRequested:
 @dataclass(frozen=True)
 class ClearRequested:
     """A user (``~/clear``) asks to forget what was learned."""
+
+
+@dataclass(frozen=True)
+class CancelRequested:
+    """A client cancels the mission: it ends after the running gait (at once when none
+    runs), with code ``canceled``."""
+
+    reason: str = 'canceled'
 
 
 @dataclass(frozen=True)
@@ -162,6 +176,28 @@ class SaveState:
     snapshot: dict
 
 
+#: Why a mission ended (:attr:`MissionEnded.code`).
+END_CODES = ('succeeded', 'max_steps', 'no_plan', 'canceled', 'preempted', 'failed')
+
+
+@dataclass(frozen=True)
+class MissionEnded:
+    """A mission ended: said exactly once per mission, whatever ended it, after the save
+    that records it (a driver releases it once that save is on disk, as it does statuses).
+
+    ``code`` is one of :data:`END_CODES`; ``reason`` says it in words; ``steps`` were taken
+    toward the last goal, ``goals_reached`` of the mission's ``goals``."""
+
+    mission_id: int
+    success: bool
+    code: str
+    reason: str
+    steps: int
+    pose: tuple = None  # where the robot was (x, y, yaw), if known
+    goals_reached: int = 0
+    goals: int = 1
+
+
 class State(enum.Enum):
     IDLE = 'idle'  # no goal
     READY = 'ready'  # a goal: the next step starts once there is a pose and no hold
@@ -180,10 +216,13 @@ class StepperConfig:
     outcome_timeout: float = 10.0  # then the same command is sent again
     detector_timeout: float = 2.0  # then the next step starts without the verdict
     plan_timeout: float = 10.0  # then the plan is asked again
+    plan_attempts: int = 3  # plans asked without an answer before the mission fails
     adapt_on_start: bool = False
+    # A fall is got up from where the robot lies (the simulator rights it); True: the robot
+    # is put back at the start through a reset service (episodic set-ups).
     reset_on_fall: bool = False
     pose_tolerance: float = 0.1  # m: odometry this far from the held pose replaces it
-    on_detection: str = 'reset'  # a detection while adapting: see learning.ON_DETECTION
+    on_detection: str = 'evidence'  # a detection while adapting: see learning.ON_DETECTION
     max_displacement: float = 2.0  # m: an outcome moving the robot further is refused
 
 
@@ -218,6 +257,8 @@ class AskedPlan:
     t: float  # when it was asked
     waypoint: np.ndarray = None
     refused: str = None  # why there is no path
+    following: np.ndarray = None  # the waypoint of the step after (planner.horizon 2)
+    attempts: int = 1  # times asked
 
 
 @dataclass

@@ -29,9 +29,12 @@ from typing import Protocol
 import numpy as np
 
 from sela_ros.core import acquisition
+from sela_ros.core.damage_detection import DetectorConfig
 from sela_ros.core.gp import CandidateSetGP
+from sela_ros.core.mission import run_mission
 from sela_ros.core.planning import PlanningError, next_waypoint, straight_line_planner
 from sela_ros.core.sela import SELA, SELAConfig, observed_generic_reward
+from sela_ros.core.stepper_io import StepperConfig
 
 
 class Environment(Protocol):
@@ -83,6 +86,10 @@ class Problem:
         stability: ``(M,)`` the fall model's stability feature (SELA's ``stability``).
         priors: damage priors (:mod:`sela_ros.core.damage_priors`) for ``sela`` only; the
             baselines are the paper's, over the intact map and one step ahead.
+        stepper, detector, detect: for ``sela``, which runs the ``sela_adapter`` node's
+            decision loop: its stepper's and damage detector's settings (the node's
+            defaults), and whether the detector runs (False: adaptation from the first step
+            only if ``stepper.adapt_on_start``). ``max_steps`` caps each goal of a mission.
     """
 
     candidates: np.ndarray
@@ -102,6 +109,9 @@ class Problem:
     uncertainty_iterations: int = 15
     stability: np.ndarray | None = None
     priors: object = None
+    stepper: StepperConfig = dataclasses.field(default_factory=StepperConfig)
+    detector: DetectorConfig = dataclasses.field(default_factory=DetectorConfig)
+    detect: bool = True
 
     def make_sela(self, extensions=False) -> SELA:
         """A SELA over the problem; ``extensions``: with what this project adds to the
@@ -133,6 +143,7 @@ class RunResult:
     learning_iterations: int
     goal_steps: list = dataclasses.field(default_factory=list)  # task steps when each goal
     # of the mission was reached
+    behaviors: list = dataclasses.field(default_factory=list)  # archive index of each step
 
 
 def _reached(env, problem) -> bool:
@@ -196,15 +207,17 @@ def _exploit(env, problem, sela, learning_iterations):
 
 
 def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
-    """SELA: learn while doing the task (no learning phase)."""
+    """SELA: learn while doing the task (no learning phase), through the decision loop the
+    ``sela_adapter`` node runs (:func:`~sela_ros.core.mission.run_mission`: the stepper, the
+    damage detector, the planner's whole path), with the node's defaults."""
     env.reset()
-    sela = problem.make_sela(extensions=True)
-
-    def learn(index, gr, fallen, standing):
-        sela.tell_fall(index, fallen)
-        sela.tell(index, gr, standing_start=standing)
-
-    return _task_phase(env, problem, _ask(sela, problem), learn=learn)
+    run = run_mission(env, problem.make_sela(extensions=True), [*problem.via, problem.goal],
+                      problem.planner or straight_line_planner,
+                      detector_config=problem.detector, stepper_config=dataclasses.replace(
+                          problem.stepper, max_steps=problem.max_steps),
+                      detect=problem.detect)
+    return RunResult(run.success, run.steps, 0, run.goal_steps,
+                     [r.behavior_index for r in run.logic.records])
 
 
 def _learning_step(env, problem, sela, index):

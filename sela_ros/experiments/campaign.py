@@ -118,7 +118,7 @@ class CellMismatch(ValueError):
 
 
 #: What ``sela-experiment`` reports as a usage error (exit 2) instead of a traceback.
-ARGUMENT_ERRORS = (CellMismatch,)
+ARGUMENT_ERRORS = (CellMismatch, *hexapod.ARGUMENT_ERRORS)
 
 
 def _expected_parameters(archive_path, args) -> dict:

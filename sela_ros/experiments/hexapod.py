@@ -4,15 +4,19 @@
 
 Every replicate runs every method on its own simulated hexapod (PyBullet, in the worker
 process), damaged from the start, standing at the origin. Within a replicate the robot is
-never reset: learning trials (IT&E) move it too, and a fallen robot is righted in place
+never reset: learning trials (IT&E) move it too, and a fallen robot gets up where it lies
 (the gait counts). Position observations carry Gaussian noise (``--noise-std``, default
-0.1 m: the paper's sigma^2 = 0.01); the goal is judged on the true pose (eps 0.1 m).
+0.1 m: the paper's sigma^2 = 0.01). SELA runs the ``sela_adapter`` node's decision loop
+(:func:`~sela_ros.core.mission.run_mission`: its stepper, damage detector and defaults)
+and, as the node, judges the goal on the observed pose; the baselines judge it on the true
+pose (eps 0.1 m).
 
 Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measurements):
 
-* Reward selection layer: the straight line to the goal with a waypoint ``--lookahead``
-  metres ahead (default 0.6 m; the hexapod's gaits move 0-0.7 m per 3 s). Without
-  obstacles A* on a grid gives the same straight path. With ``--map`` (a course name such
+* Reward selection layer: the planner node's (an empty 8 m square centred on the start,
+  :data:`~sela_ros.core.maps.DEFAULT_MAP`; a goal off it is refused) with a waypoint
+  ``--lookahead`` metres along the path (default 0.6 m; the hexapod's gaits move 0-0.7 m
+  per 3 s). With ``--map`` (a course name such
   as ``maze``, or a map YAML) the optimal grid path on that map, ``--inflation`` metres
   clear of obstacles (:class:`~sela_ros.core.planning.GridPlanner`); without ``--goal`` the
   run is the course's mission (its goals in order, learning carried over), and a gait that
@@ -33,10 +37,13 @@ import argparse
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from sela_ros.core.maps import DEFAULT_INFLATION
+from sela_ros.core.planning import PlanningError
 from sela_ros.core.sela import SE2Motion, SELAConfig
 from sela_ros.experiments import arguments
 from sela_ros.experiments.baselines import METHODS, Problem
@@ -44,9 +51,8 @@ from sela_ros.experiments.workers import load_priors, worker_archive, worker_pla
 
 HEXAPOD_METHODS = ('sela', 'ite_uncertainty', 'ite_4dir', 'oracle')
 # Chosen by measurement (docs/hexapod_results.md): 0.5-1.0 m are alike, 0.4 m and below worse.
-DEFAULT_LOOKAHEAD = 0.6
+DEFAULT_LOOKAHEAD = SELAConfig.planner_lookahead
 ITE_MAX_ITERATIONS = 15  # the paper's N for the hexapod
-DEFAULT_INFLATION = 0.25  # m, as the planner node's planner.inflation
 FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never chosen
 
 
@@ -208,37 +214,89 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
     )
 
 
-def run_method(job):
+#: Errors that are the user's: said as a usage error (sela-experiment).
+ARGUMENT_ERRORS = (PlanningError,)
+
+
+def check_goals(goals, map_path, inflation):
+    """Refuse goals the planner could not plan to, as the nodes refuse them."""
+    grid, _ = worker_planner(map_path, inflation)
+    for goal in goals:
+        problem = grid.goal_problem(goal)
+        if problem:
+            raise PlanningError(f'goal ({goal[0]:g}, {goal[1]:g}) is {problem}: the planner '
+                                'refuses it (give a map that holds it: --map)')
+
+
+@dataclass(frozen=True)
+class Job:
+    """One method on one replicate (what a worker process is given).
+
+    ``seed`` (a ``numpy.random.SeedSequence``) seeds the observation noise and the method;
+    ``noise_seed``, when given, seeds the observation noise as the ``sim_bridge`` node's
+    ``seed`` parameter does (so that a replicate and a ``sela-demo --seed`` run observe the
+    same noise). The rest are the experiment's options (see :func:`add_arguments`)."""
+
+    name: str
+    seed: object
+    archive: str
+    damage: str
+    goal: tuple
+    noise_std: float = arguments.DEFAULT_NOISE_STD
+    lookahead: float = DEFAULT_LOOKAHEAD
+    max_steps: int = 100
+    ite_iterations: int = ITE_MAX_ITERATIONS
+    oracle_gr: object = None
+    kernel_sigma: float = None
+    alpha: float = None
+    fall_risk: float = None
+    map_path: str = None
+    inflation: float = DEFAULT_INFLATION
+    via: tuple = ()
+    fall_kernel_sigma: float = None
+    fall_cost: float = None
+    priors: str = 'auto'
+    leave_out_own: bool = False
+    horizon: float = None
+    noise_seed: int = None
+
+
+def run_method(job: Job):
     """One method on one replicate; returns a dict of plain numbers."""
-    (name, seed_seq, archive_path, damage, goal, noise_std, lookahead, max_steps,
-     ite_iterations, oracle_gr, kernel_sigma, alpha, fall_risk, map_path, inflation,
-     via, fall_kernel_sigma, fall_cost, priors_value, leave_out_own, horizon) = job
     from sela_ros.experiments.courses import CourseEnvironment
     from sim_bridge.experiment_env import HexapodEnvironment
 
-    archive = worker_archive(archive_path)
-    grid, planner = worker_planner(map_path, inflation) if map_path else (None, None)
+    archive = worker_archive(job.archive)
+    # The planner node's map, or the course's: the nodes and the experiments plan alike.
+    grid, planner = worker_planner(job.map_path, job.inflation)
+    if not job.map_path:
+        grid = None  # no course: no collisions or paths to count
     settings = archive.simulator_settings
-    env_seed, method_seed = seed_seq.spawn(2)
+    env_seed, method_seed = job.seed.spawn(2)
+    noise = job.noise_seed if job.noise_seed is not None else np.random.default_rng(env_seed)
     start = time.perf_counter()
-    with HexapodEnvironment(archive.params, damage, noise_std=noise_std,
-                            seed=np.random.default_rng(env_seed),
+    with HexapodEnvironment(archive.params, job.damage, noise_std=job.noise_std, seed=noise,
                             dt=settings['dt'], gait_duration=settings['gait_duration'],
                             solver_iterations=settings['solver_iterations']) as sim:
         env = CourseEnvironment(sim, grid) if grid is not None else sim
-        problem = make_problem(archive, goal, lookahead, max_steps, true_gr=oracle_gr,
-                               ite_iterations=ite_iterations, kernel_sigma=kernel_sigma,
-                               alpha=alpha, fall_risk=fall_risk, planner=planner, via=via,
-                               fall_kernel_sigma=fall_kernel_sigma, fall_cost=fall_cost,
-                               priors=worker_priors(priors_value, archive_path, damage,
-                                                     leave_out_own), horizon=horizon)
-        result = METHODS[name](env, problem, np.random.default_rng(method_seed))
+        problem = make_problem(archive, job.goal, job.lookahead, job.max_steps,
+                               true_gr=job.oracle_gr, ite_iterations=job.ite_iterations,
+                               kernel_sigma=job.kernel_sigma, alpha=job.alpha,
+                               fall_risk=job.fall_risk, planner=planner, via=job.via,
+                               fall_kernel_sigma=job.fall_kernel_sigma,
+                               fall_cost=job.fall_cost,
+                               priors=worker_priors(job.priors, job.archive, job.damage,
+                                                    job.leave_out_own),
+                               horizon=job.horizon)
+        result = METHODS[job.name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),
                'learning_iterations': int(result.learning_iterations),
+               'behaviors': [int(i) for i in result.behaviors],
                'falls': int(sim.falls), 'sim_seconds': sim.sim_seconds,
                'wall_seconds': time.perf_counter() - start,
-               'final_distance': float(np.hypot(final[0] - goal[0], final[1] - goal[1]))}
+               'final_distance': float(np.hypot(final[0] - job.goal[0],
+                                                final[1] - job.goal[1]))}
         if grid is not None:
             out.update(collisions=int(env.collisions), path=env.path,
                        goal_steps=list(result.goal_steps))
@@ -279,6 +337,7 @@ def run(args, progress=None) -> dict:
                        fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
                        fall_cost=getattr(args, 'fall_cost', None),
                        horizon=getattr(args, 'horizon', None)).to_dict()
+    check_goals([*via, goal], map_path, inflation)
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     # Each method's seeds are its slot in the full list of methods: run on their own later
     # (the campaign adding a method to a cell), they are those of a run of all of them.
@@ -288,13 +347,13 @@ def run(args, progress=None) -> dict:
         children = seed.spawn(len(slots))
         for name in args.methods:
             child = children[slots.index(name)]
-            jobs.append((name, child, os.path.abspath(args.archive), args.damage, goal,
-                         args.noise_std, args.lookahead, args.max_steps,
-                         args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
-                         args.fall_risk, map_path, inflation, via,
-                         getattr(args, 'fall_kernel_sigma', None),
-                         getattr(args, 'fall_cost', None), priors_value, leave_out_own,
-                         getattr(args, 'horizon', None)))
+            jobs.append(Job(name, child, os.path.abspath(args.archive), args.damage,
+                            tuple(goal), args.noise_std, args.lookahead, args.max_steps,
+                            args.ite_iterations, oracle_gr, args.kernel_sigma, args.alpha,
+                            args.fall_risk, map_path, inflation, tuple(map(tuple, via)),
+                            getattr(args, 'fall_kernel_sigma', None),
+                            getattr(args, 'fall_cost', None), priors_value, leave_out_own,
+                            getattr(args, 'horizon', None)))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -344,7 +403,7 @@ def run(args, progress=None) -> dict:
             'parameters': {'noise_std': args.noise_std, 'max_steps': args.max_steps,
                            'damage': args.damage, 'goal': list(goal), 'via': via,
                            'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,
-                           'planner': 'grid' if map_path else 'straight_line',
+                           'planner': 'grid',
                            'map': map_path, 'course': course.name if course else None,
                            'inflation': inflation if map_path else None,
                            'goal_eps': SELAConfig().goal_eps,

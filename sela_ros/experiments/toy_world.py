@@ -13,6 +13,7 @@ import numpy as np
 
 from sela_ros.core.planning import GridPlanner, OccupancyGrid
 from sela_ros.core.sela import PointMotion, SELAConfig
+from sela_ros.core.stepper_io import StepperConfig
 from sela_ros.experiments.baselines import Problem
 
 PAPER_NOISE_STD = 0.1  # the paper's sigma^2 = 0.01
@@ -104,7 +105,10 @@ def toy_problem(world: ToyWorld, goal=(2.0, 2.0), max_steps: int = 100,
     return Problem(
         candidates=world.candidates, prior_gr=world.intact_generic_reward(),
         motion=PointMotion(), goal=np.asarray(goal, dtype=float), planner=GridPlanner(grid),
-        config=config or SELAConfig(), max_steps=max_steps,
+        config=config or SELAConfig(planner_lookahead=step), max_steps=max_steps,
         true_gr=world.damaged_generic_reward(),
         ite_targets=np.array([[0.0, step], [0.0, -step], [-step, 0.0], [step, 0.0]]),
-        ite_max_iterations=10)
+        ite_max_iterations=10,
+        # The paper's toy SELA learns from the first step: its 0.1 m steps are below any
+        # detection threshold set for the hexapod.
+        stepper=StepperConfig(adapt_on_start=True), detect=False)

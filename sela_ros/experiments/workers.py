@@ -40,12 +40,13 @@ def worker_priors(value, archive_path, damage, leave_out_own):
 
 
 def worker_planner(map_path, inflation):
-    """``(grid, planner)`` for a map, built once per worker (its fields are kept too)."""
-    from sela_ros.core.maps import load_map_file
+    """``(grid, planner)`` for a map (None: the planner node's default map), built once per
+    worker (its fields are kept too)."""
+    from sela_ros.core.maps import default_grid, load_map_file
     from sela_ros.core.planning import GridPlanner
 
     if _WORKER.get('map') != (map_path, inflation):
-        grid = load_map_file(map_path)
+        grid = load_map_file(map_path) if map_path else default_grid()
         _WORKER['map'] = (map_path, inflation)
         _WORKER['planner'] = (grid, GridPlanner(grid, inflation=inflation))
     return _WORKER['planner']

@@ -55,7 +55,8 @@ class SelaAdapter(Node):
         self._result = None  # the last mission's result status, and when it was said
         self.pubs = {kind: ifc.publisher(self, topic) for kind, topic in (
             ('behavior', ifc.BEHAVIOR), ('prediction', ifc.PREDICTION),
-            ('reward', ifc.REWARD), ('diagnostics', ifc.DIAGNOSTICS), ('markers', ifc.MARKERS))}
+            ('reward', ifc.REWARD), ('diagnostics', ifc.DIAGNOSTICS), ('markers', ifc.MARKERS),
+            ('target', ifc.TARGET))}
         self.markers = markers.MarkerPublisher(self, self.pubs['markers'], self.frame_id)
         # Each input message becomes one stepper event; a malformed one is logged, dropped.
         for topic, what, event in (
@@ -180,7 +181,7 @@ class SelaAdapter(Node):
             elif isinstance(c, io.RequestReset):
                 self._call(self.reset_client, Trigger.Request(), lambda a: io.ResetDone(
                     bool(a and a.success), a.message if a else 'no answer'))
-            elif isinstance(c, (io.PublishReward, io.PublishStatus)):
+            elif isinstance(c, (io.PublishReward, io.PublishStatus, io.MissionEnded)):
                 # Acknowledged means durable: out once the saves before it are on disk.
                 self.store.after_saves(c)
                 self._release_saved()
@@ -206,6 +207,8 @@ class SelaAdapter(Node):
                     self._send_gait(c)
                 elif isinstance(c, io.PublishReward):
                     self.pubs['reward'].publish(Float64(data=c.value))
+                elif isinstance(c, io.MissionEnded):
+                    pass  # its status, just before it, said it on diagnostics
                 else:
                     values = dict(c.values, saved='False' if error else 'True')
                     self._status(c.level, c.message, values)
@@ -220,6 +223,8 @@ class SelaAdapter(Node):
         if not c.resend:
             self.pubs['prediction'].publish(conv.prediction_to_msg(
                 c.behavior_id, c.predicted_gr, c.sigma))
+            self.pubs['target'].publish(conv.point_stamped(
+                c.waypoint, stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id))
             self.markers.decision(c)
 
     def _request_plan(self, command):

@@ -1,6 +1,7 @@
 """The ``sela_adapter`` node's parameters: names, defaults, descriptions, ranges, and what
 they configure (SELA and the mission stepper). Declared through :func:`params.declare`."""
 from sela_ros.core.learning import ON_DETECTION
+from sela_ros.core.sela_config import SELAConfig
 from sela_ros.core.stepper_io import StepperConfig
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.params import Spec
@@ -23,6 +24,8 @@ PARAMETERS = (
          unit=' m', read_only=True),
     Spec('fall.kernel.sigma', 0.0, "kernel length of the fall GP; 0 = the archive's (0.1 for a "
          '2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, read_only=True),
+    Spec('planner.lookahead', SELAConfig.planner_lookahead, 'distance along the path to the '
+         'waypoint of the reward', low=0.01, high=100.0, unit=' m', read_only=True),
     Spec('planner.horizon', 0, "steps looked ahead: 1 = the paper's (the gait landing nearest "
          'the waypoint), 2 = the gait that leaves the robot best placed for the next one; 0 '
          "= the archive's (1 for a 2-D map, 2 for the 8-D map)", low=0, high=2,
@@ -49,11 +52,13 @@ PARAMETERS = (
     Spec('state_file', '', "where learning is saved after every step ('' = "
          '~/.ros/sela_ros/sela_adapter_state.json)', read_only=True),
     Spec('resume', True, 'read the state file at start-up (lifelong learning)', read_only=True),
-    Spec('reset_on_fall', True, 'after a step that ends fallen, call sim_bridge/reset',
-         read_only=True),
-    Spec('adaptation.on_detection', 'evidence', 'a new detection while adapting: keep what '
-         "was learned ('keep'), restart from the latest step ('reset'), or restart only when "
-         "the triggering gait was learned before and now does something else ('evidence')",
+    Spec('reset_on_fall', StepperConfig.reset_on_fall, 'true: after a step that ends fallen, '
+         'call sim_bridge/reset and go on from the start (episodic set-ups); false: go on '
+         'from where the robot got up', read_only=True),
+    Spec('adaptation.on_detection', StepperConfig.on_detection, 'a new detection while '
+         "adapting: keep what was learned ('keep'), restart from the latest step ('reset'), "
+         "or restart only when the triggering gait was learned before and now does something "
+         "else ('evidence')",
          rule=lambda v: None if v in ON_DETECTION else f'must be one of {ON_DETECTION}',
          read_only=True),
     Spec('outcome.max_displacement', 2.0, 'an outcome that moves the robot further than this '
@@ -64,7 +69,7 @@ PARAMETERS = (
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
-             'priors.max_misfit_reproduced', 'planner.horizon')
+             'priors.max_misfit_reproduced', 'planner.horizon', 'planner.lookahead')
 # Parameter name -> SELAConfig key, where they differ: the node's names must nest in the YAML
 # of ``ros2 param dump`` (no name a prefix of another); the core's keys are what the
 # experiments record.

@@ -117,13 +117,8 @@ def same_file(a, b):
 def goal_refused(node, goal):
     """A goal off the planner's map or inside an obstacle cannot be planned: refused
     here, and a mission in progress goes on (without a map: the planner decides)."""
-    if node.map is None:
-        return False
-    if not node.map.in_map(goal):
-        problem = f'off the map {node.map.bounds_text()}'
-    elif not node.map.is_free(node.map.world_to_cell(goal)):
-        problem = 'inside an obstacle'
-    else:
+    problem = None if node.map is None else node.map.goal_problem(goal)
+    if problem is None:
         return False
     running = node.stepper is not None and node.stepper.goal is not None and \
         node.stepper.state not in (io.State.IDLE, io.State.DONE)
@@ -134,9 +129,11 @@ def goal_refused(node, goal):
 
 
 def plan_event(answer, command):
-    """``planner/make_plan``'s answer to ``command`` as an event: the plan ends at the next
-    waypoint; an empty one (or no answer: None) means no path."""
+    """``planner/make_plan``'s answer to ``command`` as an event: the whole path to the goal
+    (the stepper takes the waypoints off it); an empty one (or no answer: None) means no
+    path."""
     poses = answer.plan.poses if answer is not None else []
-    waypoint = (poses[-1].pose.position.x, poses[-1].pose.position.y) if poses else None
-    return io.PlanReceived(command.step, tuple(command.start), waypoint,
-                           'the planner says why on /diagnostics')
+    path = tuple((p.pose.position.x, p.pose.position.y) for p in poses) or None
+    reason = ('the planner did not answer' if answer is None
+              else 'the planner found no path (it says why on diagnostics)')
+    return io.PlanReceived(command.step, tuple(command.start), reason=reason, path=path)

@@ -1,11 +1,11 @@
 """The ``planner`` node: optimal grid paths over an occupancy grid, the reward selection layer.
 
-Serves ``~/make_plan`` (nav_msgs/GetPlan): the answer's ``plan`` is the path from the
-request's start up to and ending at the next waypoint, ``planner.lookahead`` metres along
-the path to the goal (or the goal itself when closer): the waypoint the specialised reward is
-built on is its last pose. An empty plan means no path (the reason goes to ``diagnostics``).
-After each plan the full path to the goal is published on ``~/path`` and the waypoint on
-``sela/target`` for observers. Paths come from a cost-to-go field computed once per goal
+Serves ``~/make_plan`` (nav_msgs/GetPlan): the answer's ``plan`` is the whole path from the
+request's start to its goal, as GetPlan promises (the ``sela_adapter`` takes the waypoint of
+the reward off it, ``planner.lookahead`` along it). A start off the map or in an obstacle is
+led back onto the map from the nearest free cell. An empty plan means no path (the reason
+goes to ``diagnostics``). After each plan the path is also published on ``~/path`` for
+observers. Paths come from a cost-to-go field computed once per goal
 and map (:class:`~sela_ros.core.planning.GridPlanner`): milliseconds per plan on a million
 cells.
 
@@ -16,14 +16,20 @@ on ``diagnostics`` and the current one kept. The map in use is published, latche
 ``~/map``. A goal on ``goal_pose`` is checked against the map and planned from the latest
 odometry, so a bad goal is reported as soon as it is sent.
 """
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from sela_ros.core.maps import MapError, grid_from_description, grid_from_ros, load_map_file
-from sela_ros.core.planning import GridPlanner, PlanningError, next_waypoint
+from sela_ros.core.maps import (
+    DEFAULT_INFLATION,
+    DEFAULT_MAP,
+    MapError,
+    grid_from_description,
+    grid_from_ros,
+    load_map_file,
+)
+from sela_ros.core.planning import GridPlanner, PlanningError
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes import interface as ifc
@@ -32,19 +38,7 @@ from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 
-__all__ = ['PlannerNode', 'grid_from_description', 'load_map_file', 'main', 'path_up_to']
-
-
-def path_up_to(path_xy, waypoint):
-    """The path's points before ``waypoint`` (a point on it), then the waypoint itself."""
-    path_xy = np.asarray(path_xy, dtype=float).reshape(-1, 2)
-    if len(path_xy) < 2:
-        return np.vstack([path_xy[:1], waypoint])
-    a, seg = path_xy[:-1], np.diff(path_xy, axis=0)
-    t = np.clip(np.sum((waypoint - a) * seg, axis=1) / np.maximum(np.sum(seg * seg, axis=1),
-                                                                 1e-18), 0.0, 1.0)
-    k = int(np.argmin(np.hypot(*(a + t[:, None] * seg - waypoint).T)))
-    return np.vstack([path_xy[:k + 1], waypoint])
+__all__ = ['PlannerNode', 'grid_from_description', 'load_map_file', 'main']
 
 
 def _origin_rule(value):
@@ -58,14 +52,14 @@ def _obstacles_rule(value):
 
 
 PARAMETERS = (
-    Spec('map.resolution', 0.05, 'size of a grid cell', low=0.001, high=1.0, unit=' m',
-         read_only=True),
-    Spec('map.origin', [-1.0, -1.0], 'lower-left corner [x, y] of the grid in odom (m)',
-         rule=_origin_rule, read_only=True),
-    Spec('map.width', 4.0, 'width of the grid', low=0.01, high=1000.0, unit=' m',
-         read_only=True),
-    Spec('map.height', 4.0, 'height of the grid', low=0.01, high=1000.0, unit=' m',
-         read_only=True),
+    Spec('map.resolution', DEFAULT_MAP['resolution'], 'size of a grid cell', low=0.001,
+         high=1.0, unit=' m', read_only=True),
+    Spec('map.origin', list(DEFAULT_MAP['origin']), 'lower-left corner [x, y] of the grid in '
+         'odom (m)', rule=_origin_rule, read_only=True),
+    Spec('map.width', DEFAULT_MAP['width'], 'width of the grid', low=0.01, high=1000.0,
+         unit=' m', read_only=True),
+    Spec('map.height', DEFAULT_MAP['height'], 'height of the grid', low=0.01, high=1000.0,
+         unit=' m', read_only=True),
     # Not set by default: ROS cannot hold an empty typed array in YAML.
     Spec('map.obstacles', None, 'rectangles [xmin, ymin, xmax, ymax, ...] in m',
          kind='double_array', rule=_obstacles_rule, read_only=True),
@@ -74,10 +68,8 @@ PARAMETERS = (
          'parameters. Settable at run time: a file that cannot be used is refused'),
     Spec('map.unknown_is_occupied', True, 'unknown cells (-1) of a map_server map or a map '
          'message are obstacles (false: free)', read_only=True),
-    Spec('planner.lookahead', 0.6, 'distance along the path to the waypoint of the reward',
-         low=0.01, high=100.0, unit=' m'),
-    Spec('planner.inflation', 0.25, 'clearance kept from obstacles', low=0.0, high=10.0,
-         unit=' m'),
+    Spec('planner.inflation', DEFAULT_INFLATION, 'clearance kept from obstacles', low=0.0,
+         high=10.0, unit=' m'),
     Spec('frame_id', 'odom', 'frame of goals, paths and waypoints', read_only=True),
 )
 
@@ -94,7 +86,6 @@ class PlannerNode(Node):
         self._pending_grid = None
         values = declare(self, PARAMETERS, on_change=self.parameters_callback)
         self.frame_id = values['frame_id']
-        self.lookahead = values['planner.lookahead']
         self.unknown_is_occupied = values['map.unknown_is_occupied']
         self.inflation = values['planner.inflation']
         self.map_error = None
@@ -104,7 +95,6 @@ class PlannerNode(Node):
 
         self.map_pub = ifc.publisher(self, ifc.MAP)
         self.path_pub = ifc.publisher(self, ifc.PATH)
-        self.target_pub = ifc.publisher(self, ifc.TARGET)
         self.diag_pub = ifc.publisher(self, ifc.DIAGNOSTICS)
         ifc.subscription(self, ifc.ODOM, self.odom_callback)
         ifc.subscription(self, ifc.GOAL, self.goal_callback)
@@ -146,8 +136,8 @@ class PlannerNode(Node):
         self.map_pub.publish(grids.occupancy_grid_to_msg(
             grid.occupied, grid.resolution, grid.origin, frame_id=self.frame_id))
         message = (f'map from {source}: {grid.width}x{grid.height} cells of '
-                   f'{grid.resolution} m, bounds {grid.bounds_text()}, lookahead '
-                   f'{self.lookahead} m, inflation {self.planner.inflation} m')
+                   f'{grid.resolution} m, bounds {grid.bounds_text()}, inflation '
+                   f'{self.planner.inflation} m')
         self._report(DiagnosticStatus.OK, message)
         self._prepare_goal()
 
@@ -202,9 +192,7 @@ class PlannerNode(Node):
     def parameters_applied_callback(self, params):
         rebuild = False
         for param in params:
-            if param.name == 'planner.lookahead':
-                self.lookahead = float(param.value)
-            elif param.name == 'planner.inflation':
+            if param.name == 'planner.inflation':
                 self.inflation = float(param.value)
                 rebuild = True
         if self._pending_grid is not None:
@@ -226,12 +214,9 @@ class PlannerNode(Node):
     def goal_callback(self, msg):
         try:
             goal = conv.goal_from_pose_stamped(msg, self.frame_id)
-            if not self.grid.in_map(goal):
-                raise PlanningError(f'goal ({goal[0]:.2f}, {goal[1]:.2f}) is off the map '
-                                    f'{self.grid.bounds_text()}')
-            if not self.grid.is_free(self.grid.world_to_cell(goal)):
-                raise PlanningError(f'goal ({goal[0]:.2f}, {goal[1]:.2f}) is inside an '
-                                    'obstacle')
+            problem = self.grid.goal_problem(goal)
+            if problem:
+                raise PlanningError(f'goal ({goal[0]:.2f}, {goal[1]:.2f}) is {problem}')
         except (conv.MessageError, PlanningError) as exc:
             self._report(DiagnosticStatus.ERROR, f'goal rejected: {exc}')
             return
@@ -258,14 +243,10 @@ class PlannerNode(Node):
         return response
 
     def _plan(self, start, goal, stamp):
-        """Plan, publish the path and the target; returns the plan up to the waypoint."""
-        path_xy = self.planner(start, goal)
-        waypoint = next_waypoint(path_xy, start, self.lookahead)
-        self.target_pub.publish(conv.point_stamped(waypoint, stamp=stamp,
-                                                   frame_id=self.frame_id))
-        self.path_pub.publish(conv.path_to_msg(path_xy, stamp=stamp, frame_id=self.frame_id))
-        return conv.path_to_msg(path_up_to(path_xy, waypoint), stamp=stamp,
-                                frame_id=self.frame_id)
+        """Plan and publish the path; returns it (the whole path to the goal)."""
+        path = conv.path_to_msg(self.planner(start, goal), stamp=stamp, frame_id=self.frame_id)
+        self.path_pub.publish(path)
+        return path
 
     def _report(self, level, message):
         self.get_logger().error(message) if level >= DiagnosticStatus.ERROR else \

@@ -9,7 +9,8 @@ The paper's 8-D map (final x, y + six duty factors, a CVT archive built with pyr
 ``requirements-qd.txt``, physics ``sim_bridge.settings.FAST_SETTINGS``)::
 
     sela-build-archive --descriptor 8d --cells 60000 --evaluations 200000 --workers 1 \\
-        --checkpoint /work/mapbuild/map8d.checkpoint.pkl --out /work/mapbuild/map8d.npz
+        --checkpoint ~/.cache/sela_ros/mapbuild/map8d.checkpoint.pkl \\
+        --out ~/.cache/sela_ros/mapbuild/map8d.npz
 
 (``scripts/build_map8d.sh``; 60,000 cells because part of the 8-D box holds (x, y, duty)
 combinations no gait reaches, and the map should hold 10,000 elites or more; ``--resume
