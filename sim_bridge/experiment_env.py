@@ -64,6 +64,7 @@ class HexapodEnvironment:
         self.observed = ObservedHexapod(self.robot, noise_std=noise_std, seed=seed)
         self.falls = 0
         self.sim_seconds = 0.0
+        self._moved = False  # a gait ran since the robot was built or reset
 
     def close(self) -> None:
         self.robot.close()
@@ -75,8 +76,14 @@ class HexapodEnvironment:
         self.close()
 
     def reset(self) -> None:
-        """Standing at the origin, yaw 0, with the damage (start of a replicate)."""
-        self.observed.reset()
+        """Standing at the origin, yaw 0, with the damage (start of a replicate).
+
+        A new environment is there already: it keeps its first observation, as the
+        ``sim_bridge`` node does at start-up, so that the same ``seed`` draws the same
+        observation noise in process and over DDS."""
+        if self._moved:
+            self.observed.reset()
+        self._moved = False
         self.falls = 0
 
     @property
@@ -98,6 +105,7 @@ class HexapodEnvironment:
         start = time.perf_counter()
         # A fallen robot gets up where it lies (ObservedHexapod): the observation after the
         # gait stays valid.
+        self._moved = True
         execution = self.observed.execute(self.params[index])
         if execution.fallen:
             self.falls += 1

@@ -10,16 +10,12 @@ import yaml
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.parameter import parameter_value_to_python
 
-from sela_ros.core.damage_detection import DetectorConfig
-from sela_ros.nodes import adapter_params, damage_detector_node, planner_node
 from sela_ros.nodes.params import Spec, nesting_conflicts, take_renamed
-from sim_bridge import node as sim_bridge_node
+from sela_ros.tools.parameter_docs import node_parameters
 
 from ros_graph import Client, NodeProcesses
 
-SPECS = {'sim_bridge': sim_bridge_node.PARAMETERS, 'planner': planner_node.PARAMETERS,
-         'damage_detector': damage_detector_node.parameters(DetectorConfig()),
-         'sela_adapter': adapter_params.PARAMETERS}
+SPECS = node_parameters()  # every node's specs, as docs/parameters.md lists them
 # Start-up values other than config/sela.yaml's, so that a dump that did not load back shows.
 # The adapter's are given under their earlier names: read as the new ones.
 CHANGED = {

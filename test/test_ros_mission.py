@@ -257,3 +257,18 @@ def test_a_namespaced_stack_runs_its_mission_under_its_namespace():
     finally:
         client.close()
         nodes.stop()
+
+
+@pytest.mark.parametrize('graph', [{'sim_bridge': {'damage': 'intact', 'seed': 3},
+                                    'planner': {'map.origin': [0.5, -1.0], 'map.width': 3.0,
+                                                'map.height': 3.0}}], indirect=True)
+def test_a_robot_off_the_planners_map_is_led_onto_it_and_reaches_a_goal_inside(graph):
+    nodes, client = graph
+    watcher = Watcher(client)
+    goal = (1.5, 0.5)  # on the map; the robot starts at (0, 0), off it (x < 0.5)
+    watcher.send_goal(*goal)
+    client.spin_until(lambda: watcher.get_result(), 300, 'the end of the mission')
+    assert watcher.get_result().success, (watcher.get_result(), nodes.logs())
+    end = watcher.steps[-1].end_pose
+    assert np.hypot(end[0] - goal[0], end[1] - goal[1]) < 0.1
+    assert watcher.steps[0].pose[0] < 0.5  # the first step started off the map

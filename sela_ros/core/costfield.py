@@ -18,19 +18,12 @@ cell. So the field's cost at the start is exactly A*'s path cost (tested on rand
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-SQRT2 = math.sqrt(2.0)
-
-
-# The eight moves (dx, dy, cost in cells).
-MOVES = ((1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0),
-         (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2), (-1, -1, SQRT2))
+from sela_ros.core.grid import MOVES
 
 
 def grid_graph(free) -> csr_matrix:

@@ -11,9 +11,9 @@ import numpy as np
 from scipy import ndimage
 
 SQRT2 = math.sqrt(2.0)
-# The 8-connected moves (dx, dy, cost in cells).
-_MOVES = [(1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0),
-          (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2), (-1, -1, SQRT2)]
+#: The 8-connected moves (dx, dy, cost in cells).
+MOVES = ((1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0),
+         (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2), (-1, -1, SQRT2))
 
 
 class PlanningError(ValueError):
@@ -154,7 +154,7 @@ def nearest_free_cell(grid: OccupancyGrid, cell):
     while frontier:
         nxt = []
         for c in frontier:
-            for dx, dy, _ in _MOVES:
+            for dx, dy, _ in MOVES:
                 n = (c[0] + dx, c[1] + dy)
                 if n in seen or not (0 <= n[0] < grid.width and 0 <= n[1] < grid.height):
                     continue

@@ -21,7 +21,7 @@ import numpy as np
 
 from sela_ros.core.costfield import CostField, grid_graph
 from sela_ros.core.grid import (  # noqa: F401  (the planning API: callers import them here)
-    _MOVES,
+    MOVES,
     SQRT2,
     InObstacleError,
     OccupancyGrid,
@@ -78,7 +78,7 @@ def astar_cells(grid: OccupancyGrid, start_cell, goal_cell):
                 cell = parent[cell]
             return path[::-1], cost
         closed.add(cell)
-        for dx, dy, step in _MOVES:
+        for dx, dy, step in MOVES:
             nxt = (cell[0] + dx, cell[1] + dy)
             if nxt in closed or not grid.is_free(nxt):
                 continue

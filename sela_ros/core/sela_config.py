@@ -29,7 +29,7 @@ class SELAConfig:
     # Steps looked ahead: 1, the paper's (the gait landing nearest the waypoint), or 2 (the
     # gait from whose predicted end pose the best next gait lands nearest a second waypoint
     # as far again along the path). Maps set their own (learning.archive_config).
-    planner_horizon: float = 1.0
+    planner_horizon: int = 1
     goal_eps: float = 0.1
     # Risk of falling accepted (fall-aware acquisition); 1 or more: falls are not avoided.
     fall_risk_threshold: float = fall_risk.DEFAULT_THRESHOLD
@@ -71,10 +71,23 @@ class SELAConfig:
         if unknown:
             raise ValueError(f'unknown SELA parameter(s) {unknown}; expected some of '
                              f'{sorted(known)}')
-        return cls(**{known[k]: float(v) for k, v in values.items()})
+        return cls(**{known[k]: _number(k, v) for k, v in values.items()})
 
     def to_dict(self) -> dict:
         return {_dotted(k): v for k, v in dataclasses.asdict(self).items()}
+
+
+def _number(name, value):
+    """A parameter's value as a number: an integral one (``planner.horizon: 2``) stays an
+    int, so that a dump of the config reads back as it was written."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f'{name} must be a number, got {value!r}') from None
+    if name == 'planner.horizon' and float(value).is_integer():
+        return int(value)
+    return float(value)
 
 
 #: Steps SELA can look ahead (``planner.horizon``).

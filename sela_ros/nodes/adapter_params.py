@@ -41,13 +41,14 @@ PARAMETERS = (
          'reproduced every step from a standing start (spawned, reset or righted); below '
          'priors.max_misfit = no exception', low=0.0, high=1e6, read_only=True,
          renamed_from='priors.max.misfit.reproduced'),
-    Spec('max_steps', 100, 'steps before a mission is declared failed', low=1, high=10**9),
-    Spec('detector_timeout', 2.0, "wall time to wait for the detector's verdict on an outcome",
-         low=0.001, high=3600.0, unit=' s'),
-    Spec('outcome_timeout', 10.0, 'wall time to wait for the outcome of a command before '
-         'sending it again', low=0.001, high=3600.0, unit=' s'),
-    Spec('adapt_on_start', False, 'learn from the first step, without waiting for the '
-         'detector', read_only=True),
+    Spec('max_steps', StepperConfig.max_steps, 'steps before a mission is declared failed',
+         low=1, high=10**9),
+    Spec('detector_timeout', StepperConfig.detector_timeout, "wall time to wait for the "
+         "detector's verdict on an outcome", low=0.001, high=3600.0, unit=' s'),
+    Spec('outcome_timeout', StepperConfig.outcome_timeout, 'wall time to wait for the '
+         'outcome of a command before sending it again', low=0.001, high=3600.0, unit=' s'),
+    Spec('adapt_on_start', StepperConfig.adapt_on_start, 'learn from the first step, '
+         'without waiting for the detector', read_only=True),
     Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
     Spec('state_file', '', "where learning is saved after every step ('' = "
          '~/.ros/sela_ros/sela_adapter_state.json)', read_only=True),
@@ -61,8 +62,9 @@ PARAMETERS = (
          "else ('evidence')",
          rule=lambda v: None if v in ON_DETECTION else f'must be one of {ON_DETECTION}',
          read_only=True),
-    Spec('outcome.max_displacement', 2.0, 'an outcome that moves the robot further than this '
-         'in one gait is refused, never learnt', low=1e-3, high=1e6, unit=' m'),
+    Spec('outcome.max_displacement', StepperConfig.max_displacement, 'an outcome that moves '
+         'the robot further than this in one gait is refused, never learnt', low=1e-3,
+         high=1e6, unit=' m'),
     Spec('simulator_node', ifc.SIM_BRIDGE, "whose sim.dt, sim.gait_duration and "
          "sim.solver_iterations the archive must match ('' on a real robot: no check)",
          read_only=True),
@@ -73,7 +75,7 @@ SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
 # Parameter name -> SELAConfig key, where they differ: the node's names must nest in the YAML
 # of ``ros2 param dump`` (no name a prefix of another); the core's keys are what the
 # experiments record.
-_SELA_NAMES = {'priors.max_misfit': 'priors.max.misfit',
+SELA_NAMES = {'priors.max_misfit': 'priors.max.misfit',
                'priors.max_misfit_reproduced': 'priors.max.misfit.reproduced'}
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
@@ -86,11 +88,17 @@ _FIELDS = {'adaptation.on_detection': 'on_detection',
 
 def sela_config(values):
     """The SELA parameters among the node's ``values``, keyed as SELAConfig reads them."""
-    return {_SELA_NAMES.get(k, k): values[k] for k in SELA_KEYS}
+    return {SELA_NAMES.get(k, k): values[k] for k in SELA_KEYS}
+
+
+def stepper_fields():
+    """``{parameter name: StepperConfig field}`` of the stepper's parameters."""
+    return {k: _FIELDS.get(k, k) for k in STEPPER_KEYS}
 
 
 def stepper_config(values):
-    return StepperConfig(**{_FIELDS.get(k, k): t(values[k]) for k, t in STEPPER_KEYS.items()})
+    fields = stepper_fields()
+    return StepperConfig(**{fields[k]: t(values[k]) for k, t in STEPPER_KEYS.items()})
 
 
 def stepper_change(name, value):
