@@ -128,6 +128,8 @@ class MissionActions:
                     before, False, 'preempted', 'preempted by a new goal (the mission goes '
                     'on under it)', stepper.steps))
         self.bindings[stepper.mission_id] = binding
+        if handle.is_cancel_requested:  # canceled before its mission started
+            self.node._feed(io.CancelRequested('canceled by its action client'))
         ended = await binding.ended
         return self._result(binding, ended)
 
