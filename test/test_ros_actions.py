@@ -71,13 +71,18 @@ class ActionUser:
         self.client.spin_until(future.done, timeout, 'the result')
         return future.result()
 
-    def idle_after(self, mission):
-        """Wait for the adapter to say the mission's result again while idle: nothing more
-        happens for it (a gait after the end would come before)."""
-        seen = len(self.statuses)
-        self.client.spin_until(
-            lambda: any(s.get('mission') == mission and 'success' in s
-                        for s in self.statuses[seen:]), 30, 'the result said again')
+    def results_said(self, mission):
+        return [s for s in self.statuses if s.get('mission') == mission and 'success' in s]
+
+    def said_end(self, mission, times=1):
+        """Wait until the adapter's statuses said the mission's end ``times`` times (it says
+        it again every second while idle): every status of the mission is in by then, and a
+        gait sent after its end would have come before the repeat."""
+        self.client.spin_until(lambda: len(self.results_said(mission)) >= times, 30,
+                               f'the end of mission {mission} said {times} time(s)')
+
+    def steps_of(self, mission):
+        return [s for s in self.statuses if s.get('mission') == mission and 'end_pose' in s]
 
 
 @pytest.fixture(scope='module', params=['', '/robot1'], ids=['root', 'namespaced'])
@@ -110,23 +115,31 @@ def test_navigate_to_pose_succeeds_with_feedback_every_gait(stack):
     answer = user.result(handle)
     assert answer.status == GoalStatus.STATUS_SUCCEEDED, (answer.result, nodes.logs())
     assert answer.result.error_code == 0
+    mission = _mission_of(user, handle)
+    assert mission is not None  # its statuses name its goal
+    user.said_end(mission)
     gaits = len(set(user.gaits[gaits_before:]))
-    assert gaits >= 1 and len(feedback) >= gaits, (gaits, len(feedback))
-    last = feedback[-1]
+    steps = user.steps_of(mission)
+    assert gaits >= 1 and len(steps) == gaits
+    # Feedback and result travel apart: the feedback of the last gait may come after it.
+    user.client.spin_until(lambda: len(feedback) >= gaits, 30, 'a feedback per gait')
     target = (goal.pose.pose.position.x, goal.pose.pose.position.y)
-    end = (last.current_pose.pose.position.x, last.current_pose.pose.position.y)
-    assert math.dist(end, target) <= EPS and last.distance_remaining <= EPS
+    end = conv_vector(steps[-1]['end_pose'])[:2]
+    assert math.dist(end, target) <= EPS
+    last = feedback[-1]
+    assert last.distance_remaining <= EPS and math.isclose(
+        last.distance_remaining, math.dist(end, target), abs_tol=1e-4)
     assert last.navigation_time.sec + last.navigation_time.nanosec > 0
     assert all(f.current_pose.header.frame_id == 'odom' for f in feedback)
     print(f'navigate_to_pose: {gaits} gait(s), {len(feedback)} feedback(s), ended '
           f'{math.dist(end, target):.3f} m from the goal')
-    assert _mission_of(user, handle) is not None  # its statuses name its goal
 
 
 def test_a_cancel_ends_the_mission_after_the_running_gait(stack):
     nodes, user = stack
     goal = NavigateToPose.Goal(pose=user.goal_ahead(1.5, 0.0))
     feedback = []
+    before = set(user.gaits)
     handle = user.send(user.navigate, goal, feedback)
     assert handle.accepted
     # A gait runs once the first feedback (a step done) is followed by the next command.
@@ -139,9 +152,9 @@ def test_a_cancel_ends_the_mission_after_the_running_gait(stack):
     assert cancel.result().goals_canceling
     answer = user.result(handle)
     assert answer.status == GoalStatus.STATUS_CANCELED, (answer.result, nodes.logs())
-    user.idle_after(_mission_of(user, handle))
+    user.said_end(_mission_of(user, handle), times=2)
     assert set(user.gaits) == at_cancel  # the running gait ended the mission: none after it
-    print(f'cancel: {len(at_cancel)} gait(s) in all, the last running at the cancel; '
+    print(f'cancel: {len(at_cancel - before)} gait(s), the last running at the cancel; '
           f'{answer.result.error_msg!r}')
 
 
@@ -189,13 +202,13 @@ def test_follow_waypoints_reaches_every_waypoint_in_order(stack):
     print(f'follow_waypoints: feedback current_waypoint {ranks}')
     assert ranks == sorted(ranks) and set(ranks) == {0, 1, 2}, ranks
     mission = _mission_of(user, handle)
+    user.said_end(mission)
     reached = [s for s in user.statuses[seen:]
                if s.get('mission') == mission and 'goal_reached' in s]
     xy = [(p.pose.position.x, p.pose.position.y) for p in poses]
     assert [int(s['goal_index']) for s in reached] == [2, 3]
     assert np.allclose([conv_vector(s['goal_reached']) for s in reached], xy[:2], atol=1e-6)
-    end = [s for s in user.statuses[seen:] if s.get('mission') == mission and 'end_pose' in s]
-    assert math.dist(conv_vector(end[-1]['end_pose'])[:2], xy[2]) <= EPS
+    assert math.dist(conv_vector(user.steps_of(mission)[-1]['end_pose'])[:2], xy[2]) <= EPS
 
 
 def conv_vector(text):
