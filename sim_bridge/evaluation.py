@@ -39,6 +39,5 @@ def evaluate_gait(params, damage='intact', dt: float = SIM_DEFAULTS['dt'],
     ``sim_time`` of the outcome is the gait duration.
     """
     sim = _cached_hexapod(damage, dt, gait_duration, solver_iterations)
-    sim.reset()
-    sim._sim_time = 0.0
+    sim.reset(clock=True)
     return sim.execute(params)

@@ -254,10 +254,13 @@ class Hexapod:
         return sum(p.getDynamicsInfo(self._robot, link, physicsClientId=cid)[0]
                    for link in range(-1, self._max_link + 1))
 
-    def reset(self) -> None:
-        """Put the robot back standing at the origin with yaw 0 (sim_time keeps running)."""
+    def reset(self, clock=False) -> None:
+        """Put the robot back standing at the origin with yaw 0; sim_time keeps running
+        (``clock``: it starts again at 0, as for a fresh robot)."""
         p.restoreState(self._standing_state, physicsClientId=self._client)
         self.standing = True
+        if clock:
+            self._sim_time = 0.0
 
     def right(self, duration: float = 0.0) -> None:
         """Get up where it lies: rebuilt standing at the current x, y and yaw (the damage

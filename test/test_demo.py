@@ -67,3 +67,10 @@ def test_demo_rejects_bad_arguments_with_usage(ros_env):
                               capture_output=True, text=True, timeout=60)
         assert proc.returncode == 2, proc.stderr
         assert 'usage:' in proc.stderr and 'Traceback' not in proc.stderr
+
+
+def test_demo_takes_goals_with_negative_coordinates_as_written():
+    from sela_ros.tools.demo import build_parser
+
+    assert build_parser().parse_args(['--goal', '-1.4,1.2']).goal == [-1.4, 1.2]
+    assert build_parser().parse_args(['--goal', '1.6,-1']).goal == [1.6, -1.0]

@@ -258,7 +258,9 @@ def test_goal_inside_an_obstacle_is_refused_and_the_next_goal_goes_around_it(gra
 FALLING_GAIT = 21  # of the shipped 2-D archive: tips the robot over without its front left leg
 
 
-def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_failed(tmp_path):
+@pytest.mark.parametrize('episodic', [False, True])
+def test_a_fallen_robot_gets_up_where_it_lies_or_is_reset_and_the_step_failed(tmp_path,
+                                                                             episodic):
     from sela_ros.core.archive import Archive, load_archive
     from sela_ros.core.archive_paths import shipped_archive_path
 
@@ -270,8 +272,12 @@ def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_faile
     rewards[0] = (0.6, 0.0, 0.0)
     path = Archive(shipped.params[keep], shipped.descriptors[keep], rewards,
                    shipped.fitness[keep], shipped.metadata).save(tmp_path / 'falling.npz')
-    nodes = NodeProcesses({'sim_bridge': {'damage': 'remove:front_left', 'archive': str(path)},
-                           'sela_adapter': {'archive': str(path), 'max_steps': 4}})
+    # The default: the robot gets up where it lies. Episodic: it is put back at the start.
+    bridge = {'damage': 'remove:front_left', 'archive': str(path)}
+    adapter = {'archive': str(path), 'max_steps': 4}
+    if episodic:
+        bridge['right_on_fall'], adapter['reset_on_fall'] = False, True
+    nodes = NodeProcesses({'sim_bridge': bridge, 'sela_adapter': adapter})
     client = Client()
     try:
         diag = Diagnostics(client)
@@ -281,13 +287,16 @@ def test_a_fallen_robot_is_reported_reset_through_the_service_and_the_step_faile
         assert first.behavior_index == 0 and first.fallen, first
         assert first.failed_steps == 1
         assert any('fell' in e for e in diag.errors('sim_bridge: robot'))
-        assert any('failed: the robot fell' in e and '/sim_bridge/reset' in e
-                   for e in diag.errors('sela_adapter'))
-        # It fell away from the start, and the next step started from the start again.
+        assert any('failed: the robot fell' in e for e in diag.errors('sela_adapter'))
         end, start = first.end_pose, second.pose
-        assert np.linalg.norm(end[:2]) > 0.1, first
-        assert np.linalg.norm(start[:2]) < 0.02 and abs(start[2]) < 0.02, second
-        assert 'reset: robot back at the start' in nodes.logs()['sela_adapter.log']
+        assert np.linalg.norm(end[:2]) > 0.1, first  # it fell away from the start
+        if episodic:  # the next step started from the start again
+            assert any('/sim_bridge/reset' in e for e in diag.errors('sela_adapter'))
+            assert np.linalg.norm(start[:2]) < 0.02 and abs(start[2]) < 0.02, second
+            assert 'reset: robot back at the start' in nodes.logs()['sela_adapter.log']
+        else:  # it got up where it lay, and the next step started there
+            assert np.allclose(start, end), (first, second)
+            assert 'reset' not in nodes.logs()['sela_adapter.log']
         assert all(nodes.alive().values()), nodes.logs()
     finally:
         client.close()

@@ -46,7 +46,7 @@ def test_config_dotted_names():
                                 'acquisition.ucb.alpha', 'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
                                 'priors.max.misfit', 'priors.max.misfit.reproduced',
-                                'planner.horizon'}
+                                'priors.weights.sd', 'planner.horizon'}
     with pytest.raises(ValueError, match="unknown SELA parameter.*gp.kernel.sgima"):
         SELAConfig.from_dict({'gp.kernel.sgima': 0.2})
     with pytest.raises(ValueError, match='goal.eps'):

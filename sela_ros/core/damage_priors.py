@@ -77,12 +77,15 @@ class Selection:
     """Which prior :meth:`DamagePriors.select` chose: ``index`` into the tables (None: the
     archive's own, the intact map), its ``name``, its ``misfit``, and whether it
     ``reproduced`` every step made from a standing start (the robot's own damage, then: its
-    chained runs hold for this robot)."""
+    chained runs hold for this robot). ``mixture``: a
+    :class:`~sela_ros.core.prior_mixture.Mixture` of the tables instead of one (``index``
+    None), or None."""
 
     index: int | None
     name: str
     misfit: float
     reproduced: bool = False
+    mixture: object = None
 
 
 INTACT = Selection(None, 'intact', 0.0)

@@ -100,6 +100,7 @@ class FallRisk:
             raise ValueError('prior fall rates must be finite numbers in [0, 1]')
         self._args = (candidates, prior[:, None], sigma, variance, noise)
         self._z = None
+        self._log_lik_grid = None  # table_support's, computed on its first call
         if stability is not None:
             stability = np.asarray(stability, dtype=float).reshape(-1)
             if stability.shape != (candidates.shape[0],) or not np.all(np.isfinite(stability)):
@@ -156,27 +157,34 @@ class FallRisk:
         """The logistic model's prior on a foreseen damage, from its table's falls.
 
         ``fallen``: ``(M,)`` which gaits fall from a standing start on that damage (a damage
-        prior's table). Returns ``(theta mean, theta sd, beta mean, beta sd)``: the means are
-        the posterior of :data:`THETA_PRIOR` and :data:`BETA_PRIOR` given the table's falls,
-        weighed as :data:`TABLE_EVIDENCE` gaits (a table whose gaits never fall says that
-        this damage rarely tips the robot over, whatever the support); the spreads stay the
-        generic prior's, so the robot's own steps move it as fast as they move that one.
-        None without a stability feature."""
+        prior's table), or the rate at which each falls (a mixture of tables). Returns
+        ``(theta mean, theta sd, beta mean, beta sd)``: the means are the posterior of
+        :data:`THETA_PRIOR` and :data:`BETA_PRIOR` given the table's falls, weighed as
+        :data:`TABLE_EVIDENCE` gaits (a table whose gaits never fall says that this damage
+        rarely tips the robot over, whatever the support); the spreads stay the generic
+        prior's, so the robot's own steps move it as fast as they move that one. None without
+        a stability feature."""
         if self._z is None:
             return None
-        fallen = np.asarray(fallen, dtype=bool).reshape(-1)
+        fallen = np.asarray(fallen, dtype=float).reshape(-1)
         if fallen.shape != self._z.shape:
             raise ValueError(f'fallen must have shape {self._z.shape}, got {fallen.shape}')
+        if not np.all((fallen >= 0) & (fallen <= 1)):
+            raise ValueError('fallen must be flags or fall rates in [0, 1]')
         # The gaits binned on the grid of z: one likelihood term per bin, not per gait.
         step = _Z_GRID[1] - _Z_GRID[0]
         bins = np.rint((self._z - _Z_GRID[0]) / step).astype(int)  # z is within the grid
         weight = TABLE_EVIDENCE / fallen.size
+        if self._log_lik_grid is None:
+            # log P(fall) and log P(stand) at every grid point of (theta, beta) and of z, once:
+            # a mixture of tables asks for a new support prior at every step.
+            self._log_lik_grid = tuple(
+                _log_likelihood(self._theta[:, None], self._beta[:, None], _Z_GRID[None, :],
+                                flag) for flag in (True, False))
         log_post = self._log_prior.copy()
-        for flag in (True, False):
-            counts = np.bincount(bins[fallen == flag], minlength=_Z_GRID.size) * weight
-            used = np.flatnonzero(counts)
-            log_post += _log_likelihood(self._theta[:, None], self._beta[:, None],
-                                        _Z_GRID[None, used], flag) @ counts[used]
+        for grid, share in zip(self._log_lik_grid, (fallen, 1.0 - fallen)):
+            counts = np.bincount(bins, weights=share, minlength=_Z_GRID.size) * weight
+            log_post += grid @ counts
         w = np.exp(log_post - log_post.max())
         w /= w.sum()
         return (float(w @ self._theta), THETA_PRIOR[1], float(w @ self._beta), BETA_PRIOR[1])

@@ -216,3 +216,16 @@ class CandidateSetGP:
         residual = self.observed - prior_mean[self._indices]
         beta = solve_triangular(self._chol.L, residual, lower=True, check_finite=False)
         return prior_mean.T + beta.T @ self._V[:n]
+
+    def mean_at_with_prior(self, index: int, prior_observed, prior_index) -> np.ndarray:
+        """The posterior mean ``(D,)`` of candidate ``index`` under another prior mean, given
+        only where it is needed: ``prior_observed`` ``(N, D)`` at the observed inputs (in
+        :attr:`indices` order) and ``prior_index`` ``(D,)`` at ``index``; O(N^2 D)."""
+        prior_index = np.asarray(prior_index, dtype=float).reshape(-1)
+        n = self._chol.n
+        if not n:
+            return prior_index.copy()
+        residual = self.observed - np.asarray(prior_observed, dtype=float).reshape(n, -1)
+        beta = solve_triangular(self._chol.L, residual, lower=True, check_finite=False)
+        return prior_index + beta.T @ self._V[:n, int(index)]
+

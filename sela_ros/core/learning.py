@@ -157,6 +157,13 @@ class MissionLogic:
         return float(np.linalg.norm(before.mean(axis=0)[:2] - latest[:2])) > \
             self.evidence_threshold
 
+    def restore(self, adapting, adaptations, last):
+        """Take back where learning stood (a state file's): adapting or not, how many
+        adaptations, and the latest step ``[index, generic reward]`` (or None)."""
+        self.adapting = bool(adapting)
+        self.adaptations = int(adaptations)
+        self.last = None if last is None else (int(last[0]), np.array(last[1], float))
+
     def forget(self, adapt_on_start):
         """Back to the intact map: every observation forgotten."""
         self.sela.reset_learning()

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sela_ros.core import acquisition, damage_priors, fall_risk, gp
+from sela_ros.core import acquisition, damage_priors, fall_risk, gp, prior_mixture
 from sela_ros.core.motion import PointMotion, SE2Motion  # noqa: F401 (also imported from here)
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 from sela_ros.core.sela_config import HORIZONS, SELAConfig  # noqa: F401 (imported from here)
@@ -47,10 +47,18 @@ class Decision:
 
 #: :attr:`Decision.prior` of a first step hedged over the intact map and the damage priors.
 HEDGED = 'intact and damage priors'
+#: :attr:`Decision.prior` of the damage priors mixed by the weights that fit the steps seen.
+MIXTURE = 'mixture of damage priors'
+
+
 def prior_reason(name) -> str:
     """Why the prior mean ``name`` (:attr:`Decision.prior`) is the one in use, for logs."""
-    return ('no step has shown the damage yet: the first step is hedged over them'
-            if name == HEDGED else 'the one that best explains the steps seen')
+    if name == HEDGED:
+        return 'no step has shown the damage yet: the first step is hedged over them'
+    if name == MIXTURE:
+        return ('no table reproduced the steps from a standing start: the tables weighed '
+                'by how well they explain the steps seen')
+    return 'the one that best explains the steps seen'
 
 
 #: How many candidates a :class:`Decision` reports.
@@ -88,7 +96,8 @@ class SELA:
             risk of untried behaviours is learnt as a logistic model of it; None: one rate.
         priors: :class:`~sela_ros.core.damage_priors.DamagePriors`, the same behaviours on
             foreseen damages: before each choice the prior that best explains the steps seen
-            is the GPs' prior mean (``priors.max.misfit``); None: always the intact map.
+            (one table, or their mixture: :meth:`select_prior`) is the GPs' prior mean;
+            None: always the intact map.
     """
 
     def __init__(self, candidates_normalised, prior_gr, motion, planner: Callable | None
@@ -157,6 +166,10 @@ class SELA:
         self._gp = gp.CandidateSetGP(self._candidates, self._prior, sigma=c.gp_kernel_sigma,
                                      variance=c.gp_kernel_variance, noise=c.gp_noise)
         self._standing = []  # per observation: did the step start from a standing start?
+        # How well each way of using the damage priors predicted every step before it was
+        # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
+        # the mixture of the tables.
+        self._prior_scores = {'table': 0.0, 'mixture': 0.0}
 
     def forget_falls(self) -> None:
         """Forget every observed fall: back to the prior fall rates."""
@@ -185,15 +198,61 @@ class SELA:
         return bool(np.linalg.norm(pose[:2] - self.goal) < self.config.goal_eps)
 
     def select_prior(self) -> damage_priors.Selection:
-        """The prior mean the next choice uses: the intact map, or the damage prior that
-        best explains the steps seen so far (:meth:`DamagePriors.select`)."""
+        """The prior mean the next choice uses: the intact map, the damage prior that
+        best explains the steps seen so far (:meth:`DamagePriors.select`) if it reproduced
+        the robot's standing starts (the robot's own damage, foreseen) or no step started
+        standing, else, with ``priors.weights.sd`` > 0, the mixture of the tables that fits
+        the steps (:func:`~sela_ros.core.prior_mixture.fit_mixture`); with 0, the selected
+        table or the intact map whatever it reproduced."""
         if self.priors is None or not self._gp.num_samples:
             return damage_priors.INTACT
         fall_idx, fallen = self._fall.observations
         idx, grs = self.observations
-        return self.priors.select(self._prior, idx, grs, fall_idx, fallen,
-                                  self.config.priors_max_misfit, self._standing,
-                                  self.config.priors_max_misfit_reproduced)
+        selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                       self.config.priors_max_misfit, self._standing,
+                                       self.config.priors_max_misfit_reproduced)
+        # With no step from a standing start there is nothing a table could reproduce: a
+        # table that explains the steps (priors.max.misfit) is then used as it is.
+        unjudged = selection.index is not None and not any(self._standing)
+        scores = self._prior_scores
+        if self.config.priors_weights_sd <= 0 or selection.reproduced or unjudged \
+                or scores['mixture'] <= scores['table']:
+            return selection
+        mixture = self._mixture(idx, grs, fall_idx, fallen)
+        return damage_priors.Selection(None, MIXTURE, mixture.misfit, mixture=mixture)
+
+    def _mixture(self, idx, grs, fall_idx, fallen):
+        return prior_mixture.fit_mixture(self._prior, self.priors.generic_reward, idx, grs,
+                                         fall_idx, fallen, self._standing,
+                                         weight_sd=self.config.priors_weights_sd)
+
+    def _score_priors(self, index, observed, standing) -> None:
+        """Score the one-table choice and the mixture on a step about to be learnt: the
+        likelihood of what it did under each one's posterior mean, from the steps before it
+        (a prequential comparison: each is judged on predicting gaits it has not seen; the
+        mixture's K weights fit the steps seen better than one table can, so their fit
+        alone would always prefer it). The mixture is used only while it predicts better:
+        on a leg removed whose own table is left out, the other legs' tables predict the
+        gaits no better than the intact map (docs/priors_combination.md)."""
+        fall_idx, fallen = self._fall.observations
+        if fall_idx.size and fall_idx[-1] == index and fallen[-1]:
+            return  # the tumble's displacement tests neither
+        idx, grs = self.observations
+        k = self.motion.gr_dim
+        selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                       self.config.priors_max_misfit, self._standing,
+                                       self.config.priors_max_misfit_reproduced)
+        rows = np.append(idx, index)
+        one = (self._prior if selection.index is None
+               else self.priors.generic_reward[selection.index])[rows, :k]
+        weights = self._mixture(idx, grs, fall_idx, fallen).weights
+        base = self._prior[rows]
+        mixed = base + np.tensordot(weights, self.priors.generic_reward[:, rows, :k] - base,
+                                    axes=1)
+        for key, prior in (('table', one), ('mixture', mixed)):
+            predicted = self._gp.mean_at_with_prior(index, prior[:-1], prior[-1])
+            self._prior_scores[key] += prior_mixture.step_log_likelihood(
+                observed - predicted, standing)
 
     def _posterior(self, selection):
         """``(mu (k, M), var (M,), fall prior)`` under ``selection``: the fall prior is the
@@ -201,6 +260,14 @@ class SELA:
         its support prior, and its chained runs if it reproduced the robot's standing
         starts: those of another damage mislead), ``()`` for the intact map."""
         mu_t, var = self._gp.query_columns()
+        if selection.mixture is not None:
+            # The mixture's falls set the fall model's prior as a table's do; no chained runs:
+            # those of the damages mixed mislead on another robot (docs/archive.md).
+            mixture = selection.mixture
+            rates = mixture.fall_rates(self.priors.fallen)
+            mean = mixture.mean(self._prior, self.priors.generic_reward)
+            return (self._gp.mean_columns_with_prior(mean), var,
+                    (rates, self._fall.table_support(rates), None))
         if selection.index is None:
             return mu_t, var, ()
         table = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
@@ -334,6 +401,12 @@ class SELA:
         """Learn that behaviour ``index`` produced the generic reward ``observed_gr``;
         ``standing_start``: the step started with the robot standing (the first of a run, or
         after it was put back on its feet), as the damage priors' tables ran every gait."""
+        observed = np.asarray(observed_gr, dtype=float).reshape(-1)
+        if self.priors is not None and len(self.priors) and self._gp.num_samples \
+                and self.config.priors_weights_sd > 0 and observed.shape == \
+                (self.motion.gr_dim,) and np.all(np.isfinite(observed)) \
+                and isinstance(index, (int, np.integer)) and 0 <= index < self.num_candidates:
+            self._score_priors(int(index), observed, bool(standing_start))
         self._gp.add_sample(index, observed_gr)
         self._standing.append(bool(standing_start))
 
@@ -356,6 +429,7 @@ class SELA:
                 'goal': None if self.goal is None else self.goal.tolist(),
                 'indices': idx.tolist(), 'generic_rewards': grs.tolist(),
                 'standing_starts': list(self._standing),
+                'prior_scores': dict(self._prior_scores),
                 'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist()}
 
     def load_state_dict(self, state: dict) -> None:
@@ -387,3 +461,8 @@ class SELA:
             self.tell(int(i), y, st)
         for i, f in zip(fall_indices, fallen):
             self.tell_fall(i, f)
+        # The replay above scored the priors without the falls between the steps: the
+        # scores saved are those the steps gave as they came.
+        scores = state.get('prior_scores')
+        if isinstance(scores, dict) and set(scores) == set(self._prior_scores):
+            self._prior_scores = {k: float(v) for k, v in scores.items()}

@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from sela_ros.core import acquisition, damage_priors, fall_risk, gp
+from sela_ros.core import acquisition, damage_priors, fall_risk, gp, prior_mixture
 from sela_ros.core.validation import check_number
 
 
@@ -47,6 +47,11 @@ class SELAConfig:
     # start (what the table ran; needs tell(..., standing_start=True)); below priors.max.misfit:
     # no exception.
     priors_max_misfit_reproduced: float = damage_priors.DEFAULT_MAX_MISFIT_REPRODUCED
+    # Prior standard deviation of each table's weight in the mixture of damage priors that is
+    # the prior mean while no table reproduced the robot's standing starts
+    # (:mod:`~sela_ros.core.prior_mixture`); 0: no mixture, the one table that best explains
+    # the steps (within priors.max.misfit) or the intact map.
+    priors_weights_sd: float = prior_mixture.DEFAULT_WEIGHT_SD
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -54,7 +59,8 @@ class SELAConfig:
                          low_open=f.name not in ('acquisition_ucb_alpha', 'gp_noise',
                                                  'fall_kernel_sigma', 'fall_risk_cost',
                                                  'priors_max_misfit',
-                                                 'priors_max_misfit_reproduced'))
+                                                 'priors_max_misfit_reproduced',
+                                                 'priors_weights_sd'))
         if self.planner_horizon not in HORIZONS:
             raise ValueError(f'planner.horizon must be one of {HORIZONS}, got '
                              f'{self.planner_horizon!r}')

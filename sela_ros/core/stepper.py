@@ -18,15 +18,8 @@ import numpy as np
 from sela_ros.core import stepper_io as io
 from sela_ros.core.geometry import planar_distance
 from sela_ros.core.learning import MissionLogic
-from sela_ros.core.mission_goals import next_goal, take_goals
-from sela_ros.core.mission_state import (
-    abandon_restored_gait,
-    check_resume,
-    drop_mission,
-    mission_snapshot,
-    restore_mission,
-)
-from sela_ros.core.mission_status import detection_status, mission_status
+from sela_ros.core.mission_state import mission_snapshot, pending_from_snapshot
+from sela_ros.core.mission_status import detection_status, goal_status, mission_status
 from sela_ros.core.planning import next_waypoint
 from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
 from sela_ros.core.sela import prior_reason
@@ -54,9 +47,11 @@ class MissionStepper:
     Args:
         sela: the SELA learner (its goal is set by a ``GoalReceived`` event).
         config: :class:`StepperConfig`.
+        next_id: the id of the first command (a node that replaces its stepper goes on with
+            its ids, so that no latched outcome of an old command pairs with a new one).
     """
 
-    def __init__(self, sela, config=None):
+    def __init__(self, sela, config=None, next_id=1):
         self.config = config or StepperConfig()
         self.logic = MissionLogic(sela, self.config.adapt_on_start, self.config.reset_on_fall,
                                   self.config.on_detection)
@@ -70,7 +65,7 @@ class MissionStepper:
         # Counts the missions taken (saved with them): a result names its mission, so a
         # client can tell the result of its own goal from a repeat of an earlier one.
         self.mission_id = 0
-        self.next_id = 1
+        self.next_id = int(next_id)  # of the next command (unique across steppers of a node)
         self.pending = None  # PendingStep
         self.pose = self.pose_stamp = None  # the latest outcome's end pose, and its time
         self.odom = self.odom_stamp = None
@@ -138,7 +133,39 @@ class MissionStepper:
                 if self.state is State.PLANNING:
                     self.state = State.READY  # the new goal's plan is asked at once
         self.cancel = None
-        return out + take_goals(self, goals)
+        return out + self._take_goals(goals)
+
+    def _take_goals(self, goals):
+        """The mission is now ``goals`` in order (one goal: a plain goal)."""
+        goal = np.asarray(goals[0], dtype=float).reshape(-1)[:2]
+        rest = [np.asarray(g, dtype=float).reshape(-1)[:2] for g in goals[1:]]
+        # A restored mission not yet checked against odometry may still be dropped: the same
+        # goal then starts afresh from where the robot is, so that 'taken' stays true (a gait
+        # in flight at the restart is still awaited; if it never answers, the new mission
+        # goes on without it: _on_tick).
+        unchecked = self.resume is not None and self.state is not State.EXECUTING
+        if (self.goal is not None and np.array_equal(goal, self.goal)
+                and self.state not in (State.IDLE, State.DONE) and self.resume is None):
+            self.goals_left, self.goal_count = rest, self.goal_index + len(rest)
+            return [goal_status(self, 'goal already in progress')]  # it goes on
+        self.goals_left, self.goal_index, self.goal_count = rest, 1, len(goals)
+        self.sela.set_goal(goal)
+        self.goal = goal
+        self._plan = None
+        if unchecked:
+            self.resume = self.pose = None  # a new mission, from where the robot is
+        self.steps = 0
+        self.result = None
+        self.mission_id += 1
+        if self.state in (State.IDLE, State.DONE):
+            self.state = State.READY
+        # The goal is announced as taken once its save is on disk (acknowledged means
+        # durable).
+        out = [Report(Level.OK, f'new goal ({goal[0]:.2f}, {goal[1]:.2f})'), self._save(),
+               goal_status(self, 'new goal')]
+        if self.hold:
+            out.append(Report(Level.ERROR, self.hold))
+        return out
 
     def running(self):
         """Whether a mission is under way (a goal, and not ended)."""
@@ -165,7 +192,7 @@ class MissionStepper:
             self.pose_stamp = -math.inf  # the simulator's clock went back: it restarted
         self.odom, self.odom_stamp = pose, event.stamp
         if self.resume is not None and self.state is not State.EXECUTING:
-            return check_resume(self, pose)
+            return self._check_resume(pose)
         # Within a mission steps start from the outcome's observed pose, as in process; between
         # missions, or once the simulator restarted, odometry putting the robot elsewhere wins.
         moved = (self.pose is not None and event.stamp is not None
@@ -336,9 +363,9 @@ class MissionStepper:
             if self.resume is not None and self.odom is not None and planar_distance(
                     self.odom, p.pose) > self.config.pose_tolerance:
                 if self.mission_id != self.restored_mission:  # a goal came since
-                    return abandon_restored_gait(self, self.odom, p.pose) + \
+                    return self._abandon_restored_gait(self.odom, p.pose) + \
                         self._start_step(now)
-                return drop_mission(self, self.odom, p.pose)
+                return self._drop_mission(self.odom, p.pose)
             p.deadline = now + self.config.outcome_timeout
             return [Report(Level.ERROR, f'no outcome for command {p.behavior_id} within '
                            f'{self.config.outcome_timeout} s; sending it again'),
@@ -421,7 +448,17 @@ class MissionStepper:
                                        waypoint=tuple(p.waypoint), candidates=d.candidates)]
 
     def _next_goal(self, pose):
-        return next_goal(self, pose)
+        """A goal of the mission is reached: on to the next, with all that was learned."""
+        reached, steps = self.goal, self.steps
+        self.goal = self.goals_left.pop(0)
+        self.sela.set_goal(self.goal)
+        self.goal_index += 1
+        self.steps = 0
+        self._plan = None
+        message = f'goal {self.goal_index - 1}/{self.goal_count} reached after {steps} steps'
+        return [Report(Level.OK, f'{message}, pose ({pose[0]:.2f}, {pose[1]:.2f}); next goal '
+                       f'({self.goal[0]:.2f}, {self.goal[1]:.2f})'),
+                self._save(), goal_status(self, message, reached=reached, reached_steps=steps)]
 
     def _finish(self, success, pose):
         if success:
@@ -465,6 +502,76 @@ class MissionStepper:
         return mission_snapshot(self)
 
     def restore(self, snapshot, now):
-        """Take back a :meth:`snapshot` (see :func:`~sela_ros.core.mission_state.
-        restore_mission`); returns the commands (reports) it gives."""
-        return restore_mission(self, snapshot, now)
+        """Take back what :meth:`snapshot` saved; returns the commands (reports) it gives.
+        Raises KeyError, TypeError or ValueError on a bad one.
+
+        What was learned always comes back. A mission in progress comes back only if the
+        robot turns out to be where it was (the first odometry decides); a gait in flight
+        waits for its outcome.
+        """
+        self.sela.load_state_dict(snapshot['sela'])
+        m = snapshot['mission']
+        self.logic.restore(bool(m['adapting']), int(m['adaptations']), m['last'])
+        self.next_id = int(m['next_id'])
+        self.failed_steps = int(m.get('failed_steps', 0))
+        self.mission_id = self.restored_mission = int(m.get('mission_id', 0))
+        state = State(m['state'])
+        if m['goal'] is None or state in (State.IDLE, State.DONE):
+            return []
+        self.goal = np.array(m['goal'], dtype=float)
+        self.sela.set_goal(self.goal)
+        self.goals_left = [np.array(g, dtype=float) for g in m.get('goals_left', [])]
+        self.goal_index = int(m.get('goal_index', 1))
+        self.goal_count = int(m.get('goal_count', 1 + len(self.goals_left)))
+        self.steps = int(m['steps'])
+        self.reset_needed = bool(m.get('reset_needed', False))
+        pending = m.get('pending')
+        if pending is not None and state is State.EXECUTING:
+            self.pending = pending_from_snapshot(pending, self.steps, now,
+                                                 self.config.outcome_timeout)
+            self.resume = self.pending.pose
+            self.state = State.EXECUTING  # the outcome may be waiting (it is latched)
+            return [Report(Level.WARN, f'resuming: waiting for the outcome of command '
+                           f"{pending['id']}")]
+        if m['pose'] is None:
+            return self._end(False, 'failed', 'mission dropped: the state file has no pose '
+                             'to check the robot against; send the goal again', None)
+        if pending is not None:
+            self.last_id = int(pending['id'])  # a late verdict on it still counts
+        self.resume = np.array(m['pose'], dtype=float)
+        self.state = State.READY
+        return [Report(Level.WARN, f'mission to ({self.goal[0]:.2f}, {self.goal[1]:.2f}) '
+                       'restored: checking that the robot is where it was')]
+
+    def _drop_mission(self, pose, saved):
+        """The robot is not where the state file puts it: the mission ends, failed (what
+        was learned stays)."""
+        message = (f'mission to ({self.goal[0]:.2f}, {self.goal[1]:.2f}) dropped: the robot '
+                   f'is {planar_distance(pose, saved):.2f} m from where the state file puts '
+                   f'it (tolerance {self.config.pose_tolerance} m); send the goal again')
+        self.resume = self.pending = None
+        self.reset_needed = False
+        self.state = State.DONE
+        return self._end(False, 'failed', message, pose)
+
+    def _abandon_restored_gait(self, pose, saved):
+        """The gait in flight at a restart never answered and the robot is elsewhere, but a
+        goal came since: that mission goes on from where the robot is, without the gait."""
+        behavior_id = self.pending.behavior_id
+        self.resume = self.pending = self.pose = None
+        self.state = State.READY
+        self.steps = max(self.steps - 1, 0)  # the step never happened
+        return [Report(Level.WARN, f'command {behavior_id}, in flight at the restart, never '
+                       f'answered and the robot is {planar_distance(pose, saved):.2f} m from '
+                       'where it was sent: going on with the new goal from here')]
+
+    def _check_resume(self, pose):
+        """The first odometry after a restore: go on from there, or drop the mission."""
+        saved = self.resume
+        if planar_distance(pose, saved) > self.config.pose_tolerance:
+            return self._drop_mission(pose, saved)
+        self.resume = None
+        self.pose = None  # plan from where the robot is
+        return [Report(Level.WARN, f'mission resumed at step {self.steps}: the robot is '
+                       f'{planar_distance(pose, saved):.3f} m from where the state file puts '
+                       'it')]

@@ -217,7 +217,9 @@ class StepperConfig:
     detector_timeout: float = 2.0  # then the next step starts without the verdict
     plan_timeout: float = 10.0  # then the plan is asked again
     plan_attempts: int = 3  # plans asked without an answer before the mission fails
-    adapt_on_start: bool = False
+    # Learn from the first step (SELA-ADAPT from the start, as in the paper's experiments);
+    # False: trust the map until the damage detector fires (measured: docs/notebook.md).
+    adapt_on_start: bool = True
     # A fall is got up from where the robot lies (the simulator rights it); True: the robot
     # is put back at the start through a reset service (episodic set-ups).
     reset_on_fall: bool = False

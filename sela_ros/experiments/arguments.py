@@ -2,6 +2,7 @@
 (exit code 2, a message saying what was expected), never a traceback."""
 import argparse
 import math
+import re
 
 from sela_ros.experiments.baselines import METHODS
 
@@ -80,3 +81,11 @@ def damage(text):
         return parse_damage(text).canonical()
     except DamageSpecError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def take_negative_points(parser: argparse.ArgumentParser) -> None:
+    """Let ``--goal -2,1.5`` and ``--goals 2,2 -2,1.5`` through: argparse before Python
+    3.13 takes a value that starts with '-' and is not a plain number for an option (3.13
+    already takes anything starting with a negative number as a value)."""
+    if hasattr(parser, '_negative_number_matcher'):
+        parser._negative_number_matcher = re.compile(r'^-\.?\d')

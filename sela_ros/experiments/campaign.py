@@ -58,7 +58,7 @@ def damage_list(text):
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from sela_ros.core.archive_paths import default_archive_path
 
-    parser.add_argument('--archive', action='append', type=hexapod._archive, default=None,
+    parser.add_argument('--archive', action='append', type=hexapod.archive_argument, default=None,
                         help='a map to compare (repeat for several; default: the shipped one)')
     parser.add_argument('--damages', type=damage_list, default=damage_list(DEFAULT_DAMAGES),
                         help="';'-separated damage specs or groups: "

@@ -22,7 +22,6 @@ import argparse
 import importlib
 import json
 import os
-import re
 import sys
 from dataclasses import dataclass
 
@@ -65,16 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, parents=[common], help=scenario.help,
                            description=scenario.help)
         importlib.import_module(scenario.module).add_arguments(p)
-        _take_negative_points(p)
+        arguments.take_negative_points(p)
     return parser
-
-
-def _take_negative_points(parser: argparse.ArgumentParser) -> None:
-    """Let ``--goal -2,1.5`` and ``--goals 2,2 -2,1.5`` through: argparse before Python
-    3.13 takes a value that starts with '-' and is not a plain number for an option (3.13
-    already takes anything starting with a negative number as a value)."""
-    if hasattr(parser, '_negative_number_matcher'):
-        parser._negative_number_matcher = re.compile(r'^-\.?\d')
 
 
 def main(argv=None) -> int:

@@ -56,7 +56,7 @@ ITE_MAX_ITERATIONS = 15  # the paper's N for the hexapod
 FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never chosen
 
 
-def _archive(text):
+def archive_argument(text):
     from sela_ros.core.archive import ArchiveError, load_archive
     from sela_ros.core.archive_paths import resolve_archive_path
     from sim_bridge.settings import simulator_settings
@@ -94,7 +94,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment hexapod`` (the common ones are added by the CLI)."""
     from sela_ros.core.archive_paths import default_archive_path
 
-    parser.add_argument('--archive', type=_archive, default=str(default_archive_path()),
+    parser.add_argument('--archive', type=archive_argument, default=str(default_archive_path()),
                         help='behaviour-performance map (.npz, or 8d / 2d for the shipped '
                              'ones; default: the shipped 8-D map, '
                              'sela_ros/data/hexapod_archive.npz)')

@@ -21,7 +21,8 @@ from std_srvs.srv import Trigger
 
 from sela_ros.core import persistence
 from sela_ros.core import stepper_io as io
-from sela_ros.core.archive import ArchiveError
+from sela_ros.core.archive import ArchiveError, load_archive
+from sela_ros.core.archive_paths import resolve_archive_path
 from sela_ros.core.planning import OccupancyGrid
 from sela_ros.nodes import adapter_params as params
 from sela_ros.nodes import adapter_support, markers
@@ -83,12 +84,12 @@ class SelaAdapter(Node):
         self.actions = MissionActions(self)
         add_heartbeat(self)
         try:
-            adapter_support.use_archive(self, self.values['archive'])
+            self._use_archive(self.values['archive'])
         except ArchiveError as exc:
             self._report(io.Level.ERROR, f'no archive loaded: {exc}')
         else:
             if self.values['resume']:
-                adapter_support.resume(self)
+                self._resume()
         self.create_timer(TICK_PERIOD, self.tick, clock=self.wall)
 
     # --- inputs -> events ----------------------------------------------------------------
@@ -102,8 +103,11 @@ class SelaAdapter(Node):
         except conv.MessageError as exc:
             self.get_logger().error(f'{what}: {exc}')
             return
-        if isinstance(event, io.GoalReceived) and adapter_support.goal_refused(self, event.goal):
-            return
+        if isinstance(event, io.GoalReceived):
+            refusal = adapter_support.goal_refusal(self.map, event.goal, self.stepper)
+            if refusal:
+                self._report(io.Level.ERROR, refusal)
+                return
         self._feed(event)
 
     @guard
@@ -148,13 +152,63 @@ class SelaAdapter(Node):
         # Called by params.declare with values its check accepted (the rest is read-only).
         for param in changes:
             if param.name == 'archive':
-                problem = adapter_support.archive_change(self, param.value)
+                problem, path, archive = adapter_support.archive_change(
+                    param.value, self.archive_path if self.archive is not None else None,
+                    self.stepper, self.get_name())
                 if problem:
                     return SetParametersResult(successful=False, reason=problem)
+                if archive is None:
+                    self.get_logger().info(f'archive {path} is the one in use: kept, with '
+                                           'what was learned on it')
+                else:
+                    self._use_archive(path, archive)
             elif self.stepper is not None:
                 self.stepper.configure(**params.stepper_change(param.name, param.value))
             self.values[param.name] = param.value
         return SetParametersResult(successful=True)
+
+    # --- the archive, and what was learned ------------------------------------------------
+
+    def _use_archive(self, path, archive=None):
+        """Load the archive at ``path`` ('': the shipped one; ``8d``, ``2d``: the shipped ones
+        by name; ``archive``: already loaded from there) and a stepper over it; a mission in
+        progress goes on with the new archive, from where the robot is."""
+        path = resolve_archive_path(path)
+        archive, old = archive if archive is not None else load_archive(path), self.stepper
+        self.archive, self.archive_path = archive, path
+        self.priors = adapter_support.load_priors(self.values['priors.tables'], archive, path,
+                                                  self.get_logger())
+        self.stepper = adapter_support.new_stepper(
+            self.values, archive, self.priors, next_id=1 if old is None else old.next_id)
+        self.sim_check.use(archive, path)
+        self.get_logger().info(f'archive {path}: {len(archive)} behaviours, '
+                               f'{archive.descriptors.shape[1]}-D descriptors, kernel length '
+                               f'{self.stepper.sela.config.gp_kernel_sigma:g}')
+        for event in adapter_support.carried_over(old):
+            self._feed(event)
+
+    def _resume(self):
+        """Take back what the state file holds; an unusable file is set aside with the
+        reason."""
+        path = self.store.path
+        restored = []
+
+        def restore(state):
+            # Into a fresh stepper, swapped in only once all of it came back.
+            stepper = adapter_support.new_stepper(self.values, self.archive, self.priors)
+            restored.extend(stepper.restore(state, self.now()))
+            self.stepper = stepper
+
+        state, problem = persistence.resume_state(path, len(self.archive), restore)
+        if problem:
+            self._report(io.Level.ERROR, problem)
+            return
+        self._dispatch(restored)
+        if state is not None:
+            mode = 'adapting' if self.stepper.logic.adapting else 'trusting the map'
+            self.get_logger().warn(f'resumed from {path}: '
+                                   f'{len(self.stepper.sela.observations[0])} '
+                                   f'observation(s), {mode}')
 
     # --- the stepper and its commands ----------------------------------------------------
 

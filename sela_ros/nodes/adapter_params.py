@@ -41,14 +41,19 @@ PARAMETERS = (
          'reproduced every step from a standing start (spawned, reset or righted); below '
          'priors.max_misfit = no exception', low=0.0, high=1e6, read_only=True,
          renamed_from='priors.max.misfit.reproduced'),
+    Spec('priors.weights.sd', SELAConfig.priors_weights_sd, 'while no damage prior '
+         'reproduced the steps from a standing start, the prior mean is the tables mixed by '
+         'weights fitted to the steps seen (docs/priors_combination.md); this is the prior '
+         'spread of each weight; 0 = no mixture, the one table that best explains the steps',
+         low=0.0, high=1e6, read_only=True),
     Spec('max_steps', StepperConfig.max_steps, 'steps before a mission is declared failed',
          low=1, high=10**9),
     Spec('detector_timeout', StepperConfig.detector_timeout, "wall time to wait for the "
          "detector's verdict on an outcome", low=0.001, high=3600.0, unit=' s'),
     Spec('outcome_timeout', StepperConfig.outcome_timeout, 'wall time to wait for the '
          'outcome of a command before sending it again', low=0.001, high=3600.0, unit=' s'),
-    Spec('adapt_on_start', StepperConfig.adapt_on_start, 'learn from the first step, '
-         'without waiting for the detector', read_only=True),
+    Spec('adapt_on_start', StepperConfig.adapt_on_start, 'learn from the first step (false: '
+         'trust the map until the damage detector fires)', read_only=True),
     Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
     Spec('state_file', '', "where learning is saved after every step ('' = "
          '~/.ros/sela_ros/sela_adapter_state.json)', read_only=True),
@@ -71,12 +76,13 @@ PARAMETERS = (
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
-             'priors.max_misfit_reproduced', 'planner.horizon', 'planner.lookahead')
+             'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',
+             'planner.lookahead')
 # Parameter name -> SELAConfig key, where they differ: the node's names must nest in the YAML
 # of ``ros2 param dump`` (no name a prefix of another); the core's keys are what the
 # experiments record.
 SELA_NAMES = {'priors.max_misfit': 'priors.max.misfit',
-               'priors.max_misfit_reproduced': 'priors.max.misfit.reproduced'}
+              'priors.max_misfit_reproduced': 'priors.max.misfit.reproduced'}
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,

@@ -15,6 +15,7 @@ callback of a node is decorated with one of these; an exception becomes an ERROR
 """
 import functools
 import traceback
+import weakref
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
@@ -23,6 +24,8 @@ from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
 
 MAX_TEXT = 400  # characters of an exception message kept (a fuzzed message can be huge)
+# Each node's diagnostics publisher for reports of failed callbacks, made on the first one.
+_PUBLISHERS = weakref.WeakKeyDictionary()
 
 
 def _short(text):
@@ -43,9 +46,9 @@ def report_exception(node, what, exc):
     except Exception:  # noqa: BLE001 - the logger itself failing must not end the node
         pass
     try:
-        pub = getattr(node, '_guard_diagnostics', None)
+        pub = _PUBLISHERS.get(node)
         if pub is None:
-            pub = node._guard_diagnostics = ifc.publisher(node, ifc.DIAGNOSTICS)
+            pub = _PUBLISHERS[node] = ifc.publisher(node, ifc.DIAGNOSTICS)
         pub.publish(diagnostic_array(
             diagnostic_status(DiagnosticStatus.ERROR, f'{node.get_name()}: {what}', line,
                               {'exception': type(exc).__name__}),

@@ -256,7 +256,7 @@ class CVTMapElites(MapElites):
         run.bounds = np.asarray(state['bounds'], dtype=np.float64)
         run.config = dict(state['config'])
         run.seed = int(run.config['seed'])
-        return run._resumed(state)
+        return run.resumed(state)
 
     def regrid(self, centroids) -> int:
         """Go on in a finer CVT: a new archive on ``centroids`` (more cells than now), the

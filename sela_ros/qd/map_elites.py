@@ -258,9 +258,9 @@ class MapElites:
                                    seed=es['seed'])
         emitter.load_state_dict(es)
         run = cls(archive, emitter, evaluate, executor, checkpoint_path, checkpoint_every)
-        return run._resumed(state)
+        return run.resumed(state)
 
-    def _resumed(self, state):
+    def resumed(self, state):
         """Take the counters of a checkpoint's ``state``, then replay the batches the
         journal holds beyond it; returns this run."""
         self.n_evaluations = int(state['n_evaluations'])

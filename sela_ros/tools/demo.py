@@ -59,6 +59,7 @@ def build_parser():
     parser.add_argument('--node-logs', action='store_true',
                         help="show the nodes' own logs here too (default: only in "
                         "--out/<node>.log)")
+    arguments.take_negative_points(parser)  # --goal -1.4,1.2
     return parser
 
 

@@ -1,0 +1,287 @@
+"""Mixing the damage priors against choosing one, through the product's decision loop.
+
+Every run is :func:`sela_ros.core.mission.run_mission`, the in-process driver of the
+``MissionStepper`` that the ``sela_adapter`` node runs: the PyBullet hexapod damaged from the
+start, position observations with noise, the damage detector, the straight-line reward
+selection layer, a fallen robot righted where it lies. Methods:
+
+* ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` 0);
+* ``mixture``: the tables mixed by weights fitted to the steps (``priors.weights.sd`` 1);
+* ``none``: the intact map only (``--priors none``).
+
+Damages are foreseen (their table ships beside the map) or not (``/own-left-out``: the single
+leg with its own table removed from the priors; every other damage is in no table). The
+oracle's median steps per damage and goal come from the campaigns in ``docs/results``.
+Runs are appended to ``--out`` (JSON lines) as they finish, and a rerun skips those done::
+
+    nice -n 15 .venv/bin/python scripts/compare_priors.py --seeds 3 \\
+        --out docs/results/priors_combination/runs.jsonl --markdown docs/priors_combination.md
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+SINGLE_LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right',
+               'rear_right')
+#: (case, damage, whether its own table is left out of the priors).
+UNFORESEEN = tuple((f'remove:{leg}/own-left-out', f'remove:{leg}', True)
+                   for leg in SINGLE_LEGS) + tuple((d, d, False) for d in (
+                       'remove:front_left,remove:rear_right',
+                       'remove:middle_left,remove:middle_right',
+                       'shorten:front_left:0.5',
+                       'block:rear_right.knee=0.3',
+                       'remove:front_left,remove:middle_left',
+                       'shorten:rear_left:0.7,block:front_right.knee=-0.2'))
+FORESEEN = tuple((f'remove:{leg}', f'remove:{leg}', False)
+                 for leg in ('middle_right', 'front_left', 'rear_right'))
+GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
+METHODS = {'select': {'priors.weights.sd': 0.0}, 'mixture': {'priors.weights.sd': 1.0},
+           'none': None}
+CAMPAIGNS = ('campaign_priors', 'campaign_unforeseen')
+
+
+def oracle_medians():
+    """``{(canonical damage, (gx, gy)): median steps}`` of the oracle in docs/results."""
+    from sim_bridge.damage import parse_damage
+
+    out = {}
+    for camp in CAMPAIGNS:
+        pattern = str(ROOT / 'docs' / 'results' / camp / '*' / '*' / '*' / 'results.json')
+        for path in sorted(glob.glob(pattern)):
+            with open(path) as handle:
+                doc = json.load(handle)
+            oracle = doc.get('methods', {}).get('oracle')
+            if oracle:
+                key = (parse_damage(doc['parameters']['damage']).canonical(),
+                       tuple(float(v) for v in doc['parameters']['goal']))
+                out[key] = float(np.median(oracle['steps']))
+    return out
+
+
+def run_one(archive, priors_all, case, goal, method, seed, args):
+    from sela_ros.core.damage_detection import DetectorConfig
+    from sela_ros.core.mission import run_mission
+    from sela_ros.core.planning import straight_line_planner
+    from sim_bridge.environment import ObservedHexapod
+    from sim_bridge.hexapod import Hexapod
+
+    label, damage, leave_out = case
+    priors = None
+    if METHODS[method] is not None:
+        priors = priors_all.without(damage) if leave_out else priors_all
+    settings = archive.simulator_settings
+    robot = Hexapod(dt=settings['dt'], gait_duration=settings['gait_duration'],
+                    solver_iterations=settings['solver_iterations'], damage=damage)
+    env = ObservedHexapod(robot, args.noise_std, seed=seed)
+    start = time.perf_counter()
+    try:
+        success, logic = run_mission(env, archive, goal, straight_line_planner,
+                                     lookahead=args.lookahead,
+                                     sela_config=METHODS[method] or {},
+                                     detector_config=DetectorConfig(),
+                                     max_steps=args.max_steps, adapt_on_start=True,
+                                     on_detection='evidence', priors=priors)
+    finally:
+        robot.close()
+    return {'case': label, 'damage': damage, 'foreseen': not leave_out and priors is not None
+            and damage in priors_all.names, 'goal': list(goal), 'method': method,
+            'seed': seed, 'success': bool(success), 'steps': len(logic.records),
+            'falls': int(env.falls), 'wall_seconds': round(time.perf_counter() - start, 2)}
+
+
+def summarise(runs, oracle, methods):
+    """Rows per case and method: successes, median steps, ratio to the oracle, falls."""
+    from sim_bridge.damage import parse_damage
+
+    rows = []
+    cases = list(dict.fromkeys(r['case'] for r in runs))
+    for case in cases:
+        for method in methods:
+            mine = [r for r in runs if r['case'] == case and r['method'] == method]
+            if not mine:
+                continue
+            damage = parse_damage(mine[0]['damage']).canonical()
+            ratios = []
+            for goal in dict.fromkeys(tuple(r['goal']) for r in mine):
+                steps = [r['steps'] for r in mine if tuple(r['goal']) == goal]
+                o = oracle.get((damage, goal))
+                if o:
+                    ratios.append(statistics.median(steps) / o)
+            with_oracle = [r for r in mine if (damage, tuple(r['goal'])) in oracle]
+            rows.append({
+                'case': case, 'method': method, 'runs': len(mine),
+                'success': sum(r['success'] for r in mine),
+                'median_steps': statistics.median(r['steps'] for r in mine),
+                'median_steps_oracle_goals': statistics.median(
+                    r['steps'] for r in with_oracle) if with_oracle else None,
+                'oracle_median': statistics.median(
+                    oracle[(damage, tuple(r['goal']))] for r in with_oracle)
+                if with_oracle else None,
+                'median_ratio': statistics.median(ratios) if ratios else None,
+                'worst_ratio': max(ratios) if ratios else None,
+                'median_falls': statistics.median(r['falls'] for r in mine),
+                'falls': sum(r['falls'] for r in mine),
+                'every_run': ' '.join(f"{r['steps']}{'F' * min(r['falls'], 9)}"
+                                      + ('' if r['success'] else 'x') for r in mine)})
+    return rows
+
+
+def _fmt(v, spec='{:.2f}'):
+    return '-' if v is None else spec.format(v)
+
+
+def table(rows):
+    lines = ['| damage | foreseen | method | success | median steps | oracle | median ratio '
+             '| worst ratio | median falls/run | falls | every run (steps, F per fall, x '
+             'failed) |', '|' + '---|' * 11]
+    for r in rows:
+        foreseen = 'no' if ('/own-left-out' in r['case'] or r['case'] not in
+                            {c[0] for c in FORESEEN}) else 'yes'
+        lines.append(f"| {r['case']} | {foreseen} | {r['method']} | {r['success']}/{r['runs']} "
+                     f"| {r['median_steps']:g} | {_fmt(r['oracle_median'], '{:g}')} "
+                     f"| {_fmt(r['median_ratio'])}x | {_fmt(r['worst_ratio'])}x "
+                     f"| {r['median_falls']:g} | {r['falls']} | {r['every_run']} |")
+    return '\n'.join(lines)
+
+
+def totals(rows, runs, methods):
+    """Per method and group (unforeseen, foreseen): the headline figures."""
+    lines = ['| group | method | runs | success | median steps | median of the cells\' '
+             'ratios | worst cell ratio | falls |', '|' + '---|' * 8]
+    foreseen_cases = {c[0] for c in FORESEEN}
+    for group, pick in (('unforeseen', lambda c: c not in foreseen_cases),
+                        ('foreseen', lambda c: c in foreseen_cases)):
+        for method in methods:
+            mine = [r for r in runs if r['method'] == method and pick(r['case'])]
+            cells = [r for r in rows if r['method'] == method and pick(r['case'])
+                     and r['median_ratio'] is not None]
+            if not mine:
+                continue
+            median_ratio = statistics.median(c['median_ratio'] for c in cells) if cells \
+                else None
+            lines.append(
+                f"| {group} | {method} | {len(mine)} | {sum(r['success'] for r in mine)} "
+                f"| {statistics.median(r['steps'] for r in mine):g} "
+                f"| {_fmt(median_ratio)}x "
+                f"| {_fmt(max((c['worst_ratio'] for c in cells), default=None))}x "
+                f"| {sum(r['falls'] for r in mine)} |")
+    return '\n'.join(lines)
+
+
+def paired(runs, methods):
+    """Per group, each method against the first on the same (damage, goal, seed): total
+    steps over the runs both made, and how many runs it took fewer, as many, more steps."""
+    if len(methods) < 2:
+        return ''
+    first = methods[0]
+    by_key = {(r['case'], tuple(r['goal']), r['seed'], r['method']): r for r in runs}
+    foreseen_cases = {c[0] for c in FORESEEN}
+    lines = [f'| group | method | runs paired | total steps ({first}) | total steps | fewer '
+             '| as many | more | falls (' + first + ') | falls |', '|' + '---|' * 10]
+    for group, pick in (('unforeseen', lambda c: c not in foreseen_cases),
+                        ('foreseen', lambda c: c in foreseen_cases)):
+        for method in methods[1:]:
+            pairs = [(by_key[(c, g, s, first)], r) for (c, g, s, m), r in by_key.items()
+                     if m == method and pick(c) and (c, g, s, first) in by_key]
+            if not pairs:
+                continue
+            a = [p[0]['steps'] for p in pairs]
+            b = [p[1]['steps'] for p in pairs]
+            lines.append(f'| {group} | {method} | {len(pairs)} | {sum(a)} | {sum(b)} '
+                         f'| {sum(y < x for x, y in zip(a, b))} '
+                         f'| {sum(y == x for x, y in zip(a, b))} '
+                         f'| {sum(y > x for x, y in zip(a, b))} '
+                         f"| {sum(p[0]['falls'] for p in pairs)} "
+                         f"| {sum(p[1]['falls'] for p in pairs)} |")
+    return '\n'.join(lines)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--seeds', type=int, default=3, help='runs per cell (seeds 0..N-1)')
+    parser.add_argument('--methods', default='select,mixture',
+                        help=f'comma-separated, of {sorted(METHODS)} (default %(default)s)')
+    parser.add_argument('--cases', default='all',
+                        help="'all', 'unforeseen', 'foreseen' or comma-free substrings of "
+                             'case names joined by ";"')
+    parser.add_argument('--goals', default=None,
+                        help='goals X,Y separated by spaces (default: (2,2) (-2,1.5) '
+                             '(1.5,-2) (2.5,0.5))')
+    parser.add_argument('--max-steps', type=int, default=60)
+    parser.add_argument('--noise-std', type=float, default=0.01,
+                        help="observation noise (m; the campaigns' 0.01)")
+    parser.add_argument('--lookahead', type=float, default=0.6)
+    parser.add_argument('--out', default=None, help='JSON lines of every run (resumed)')
+    parser.add_argument('--markdown', default=None, help='write the tables here')
+    parser.add_argument('--report-only', action='store_true',
+                        help='run nothing: print the tables of the runs in --out')
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(ROOT))
+    from sela_ros.core.archive import load_archive
+    from sela_ros.core.archive_paths import default_archive_path
+    from sela_ros.core.damage_priors import resolve_priors
+
+    methods = [m for m in args.methods.split(',') if m]
+    unknown = set(methods) - set(METHODS)
+    if unknown:
+        parser.error(f'unknown methods {sorted(unknown)}; expected some of {sorted(METHODS)}')
+    if args.cases == 'all':
+        cases = UNFORESEEN + FORESEEN
+    elif args.cases in ('unforeseen', 'foreseen'):
+        cases = UNFORESEEN if args.cases == 'unforeseen' else FORESEEN
+    else:
+        wanted = args.cases.split(';')
+        cases = tuple(c for c in UNFORESEEN + FORESEEN if any(w == c[0] for w in wanted))
+        if not cases:
+            parser.error(f'no case named {wanted}')
+    goals = GOALS if not args.goals else tuple(
+        tuple(float(v) for v in g.split(',')) for g in args.goals.split())
+    done = []
+    if args.out and os.path.exists(args.out):
+        with open(args.out) as handle:
+            done = [json.loads(line) for line in handle if line.strip()]
+    key = {(r['case'], tuple(r['goal']), r['method'], r['seed']) for r in done}
+    if not args.report_only:
+        archive = load_archive(default_archive_path())
+        priors = resolve_priors('auto', default_archive_path(), archive.params)
+        if args.out:
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        # Seed by seed: an interrupted comparison has every cell at the same count.
+        todo = [(c, g, m, s) for s in range(args.seeds) for c in cases for g in goals
+                for m in methods if (c[0], g, m, s) not in key]
+        print(f'{len(todo)} runs to do ({len(done)} done already)', flush=True)
+        for n, (case, goal, method, seed) in enumerate(todo, 1):
+            run = run_one(archive, priors, case, goal, method, seed, args)
+            done.append(run)
+            if args.out:
+                with open(args.out, 'a') as handle:
+                    handle.write(json.dumps(run) + '\n')
+            print(f"[{n}/{len(todo)}] {case[0]} {goal} {method} seed {seed}: "
+                  f"{'ok' if run['success'] else 'FAILED'} {run['steps']} steps, "
+                  f"{run['falls']} falls, {run['wall_seconds']} s", flush=True)
+    names = {c[0] for c in cases}
+    runs = [r for r in done if r['case'] in names and r['method'] in methods
+            and tuple(r['goal']) in goals]
+    oracle = oracle_medians()
+    rows = summarise(runs, oracle, methods)
+    text = (totals(rows, runs, methods) + '\n\n' + paired(runs, methods) + '\n\n'
+            + table(rows))
+    print(text)
+    if args.markdown:
+        Path(args.markdown).write_text(text + '\n')
+
+
+if __name__ == '__main__':
+    main()
