@@ -164,14 +164,16 @@ class MissionClient:
             self.spin_once(0.05)
 
     def wait_until_ready(self, timeout=60.0, nodes=ifc.NODES):
-        """Wait until the adapter's actions are served and this client hears ``nodes``
-        (their statuses on ``diagnostics``: what one says before it is heard would be lost)."""
+        """Wait until the adapter's actions are served, ``goal_pose`` is heard (for
+        :meth:`publish_goal`) and this client hears ``nodes`` (their statuses on
+        ``diagnostics``: what one says before it is heard would be lost)."""
         topic = self.node.resolve_topic_name(self.name(ifc.DIAGNOSTICS.name))
         clients = [self._action(a) for a in ifc.ACTIONS]
 
         def ready():
             talkers = {i.node_name for i in self.node.get_publishers_info_by_topic(topic)}
-            return set(nodes) <= talkers and all(c.server_is_ready() for c in clients)
+            return (set(nodes) <= talkers and all(c.server_is_ready() for c in clients)
+                    and self._goal_pub.get_subscription_count() > 0)
         self.spin_until(ready, timeout, f"{', '.join(nodes)} on {topic} and the actions")
 
     def wait_for_goal_listeners(self, count, timeout=60.0):
