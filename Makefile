@@ -35,13 +35,15 @@ $(VENV)/.deps: requirements.txt requirements-qd.txt
 # The package itself: a real (non-editable) install, so that setup.py's data_files land in
 # $(VENV)/share exactly as colcon puts them in install/, then the executables are mirrored
 # into $(VENV)/lib/sela_ros where `ros2 run` looks.
-# tf2_msgs (for /tf) is not among the PyPI wheels: generated from its .msg with the ROS
-# interface generators that are (requirements.txt); rebuilt only when the script changes.
-$(VENV)/.tf2_msgs: $(VENV)/.deps scripts/build_tf2_msgs.py
-	$(PY) scripts/build_tf2_msgs.py --prefix $(VENV)
+# tf2_msgs (for /tf) and nav2_msgs (the adapter's actions) are not among the PyPI wheels:
+# generated from ROS Jazzy's definitions (scripts/interfaces/) with the ROS interface
+# generators that are (requirements.txt); rebuilt only when the script or a definition changes.
+INTERFACE_SOURCES := $(shell find scripts/interfaces -type f 2>/dev/null)
+$(VENV)/.interfaces: $(VENV)/.deps scripts/build_interfaces.py $(INTERFACE_SOURCES)
+	$(PY) scripts/build_interfaces.py --prefix $(VENV)
 	@touch $@
 
-$(VENV)/.installed: $(VENV)/.deps $(VENV)/.tf2_msgs $(PKG_SOURCES)
+$(VENV)/.installed: $(VENV)/.deps $(VENV)/.interfaces $(PKG_SOURCES)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation --force-reinstall .
 	$(PY) scripts/link_executables.py --prefix $(VENV)
 	@rm -rf build *.egg-info

@@ -23,11 +23,13 @@ class NodeProcesses:
     """The package's nodes as separate processes, started like ``ros2 run sela_ros <n>``."""
 
     def __init__(self, overrides=None, names=('sim_bridge', 'planner', 'damage_detector',
-                                               'sela_adapter'), namespace=''):
+                                               'sela_adapter'), namespace='',
+                 params_files=(CONFIG,)):
         self.env = ros_environment(domain_id=int(os.environ['ROS_DOMAIN_ID']))
         self.logdir = Path(tempfile.mkdtemp(prefix='sela_nodes_'))
         self.procs = {}
         self.namespace = namespace
+        self.params_files = tuple(params_files)
         self.overrides = {k: dict(v) for k, v in (overrides or {}).items()}
         # Each graph learns into its own state file: no test resumes another's learning.
         self.state_file = self.logdir / 'sela_adapter_state.json'
@@ -37,7 +39,9 @@ class NodeProcesses:
             self.start(name)
 
     def start(self, name):
-        cmd = [str(executable(name)), '--ros-args', '--params-file', str(CONFIG)]
+        cmd = [str(executable(name)), '--ros-args']
+        for path in self.params_files:
+            cmd += ['--params-file', str(path)]
         if self.namespace:  # as `ros2 launch ... namespace:=`: own names, own clock
             cmd += ['-r', f'__ns:={self.namespace}', '-r', '/clock:=clock']
         for key, value in self.overrides.get(name, {}).items():

@@ -43,7 +43,8 @@ def test_demo_reaches_goal_and_writes_summary_plot_and_mcap(tmp_path, ros_env):
                 assert 'middle_right.coxa' not in decoded.data  # the demo's damage
     for topic in ('/hexapod/behavior', '/hexapod/behavior_outcome', '/sela/reward'):
         assert counts.get(topic) == summary['steps'], (topic, counts)
-    for topic in ('/clock', '/hexapod/odom', '/goal_pose', '/planner/path', '/sela/target',
+    # (The goal goes out as a navigate_to_pose action goal: no /goal_pose message.)
+    for topic in ('/clock', '/hexapod/odom', '/planner/path', '/sela/target',
                   '/diagnostics', '/planner/map', '/hexapod/joint_states', '/tf',
                   '/robot_description'):
         assert counts.get(topic, 0) > 0, (topic, counts)

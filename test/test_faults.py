@@ -141,7 +141,8 @@ def test_adapter_with_corrupt_archive_stays_up_and_says_why(tmp_path):
 def test_adapter_with_unusable_damage_priors_adapts_from_the_intact_map(tmp_path):
     corrupt = tmp_path / 'priors.npz'
     corrupt.write_bytes(b'not a table of anything')
-    nodes = NodeProcesses({'sela_adapter': {'priors': str(corrupt)}}, names=('sela_adapter',))
+    nodes = NodeProcesses({'sela_adapter': {'priors.tables': str(corrupt)}},
+                          names=('sela_adapter',))
     client = Client()
     try:
         answer = client.call(ifc.client(client.node, ifc.ADAPT), Trigger.Request(),

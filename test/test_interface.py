@@ -5,6 +5,7 @@ DESIGN = {  # DESIGN.md's table (plus what the package adds), as seen in the roo
     '/clock', '/hexapod/odom', '/hexapod/behavior', '/hexapod/behavior_outcome', '/goal_pose',
     '/planner/path', '/planner/make_plan', '/sela/target', '/sela/reward', '/diagnostics',
     '/sela_adapter/adapt', '/sim_bridge/reset', '/tf', '/robot_description',
+    '/navigate_to_pose', '/follow_waypoints',
 }
 ADDED = {'/hexapod/joint_states', '/planner/map', '/sela/prediction',
          '/damage_detector/verdict', '/sela_adapter/clear', '/sela/markers',
@@ -14,7 +15,8 @@ ADDED = {'/hexapod/joint_states', '/planner/map', '/sela/prediction',
 
 
 def test_root_names_are_the_design_ones():
-    names = {t.root_name for t in ifc.TOPICS} | {s.root_name for s in ifc.SERVICES}
+    names = ({t.root_name for t in ifc.TOPICS} | {s.root_name for s in ifc.SERVICES}
+             | {a.root_name for a in ifc.ACTIONS})
     assert names == DESIGN | ADDED
 
 
@@ -26,6 +28,26 @@ def test_names_are_relative_so_a_namespace_moves_the_stack():
         assert service.name == f'{service.owner}/{service.own_name[2:]}'
     assert ifc.PATH.own_name == '~/path' and ifc.VERDICT.own_name == '~/verdict'
     assert ifc.GOAL.own_name == 'goal_pose'  # a shared topic: the same name for everyone
+    for action in ifc.ACTIONS:  # nav2's names, in the adapter's namespace (not ~/)
+        assert action.name in ('navigate_to_pose', 'follow_waypoints')
+        assert action.owner == ifc.SELA_ADAPTER
+
+
+def test_the_actions_are_nav2s_types():
+    from nav2_msgs.action import FollowWaypoints, NavigateToPose
+
+    assert ifc.NAVIGATE_TO_POSE.type is NavigateToPose
+    assert ifc.FOLLOW_WAYPOINTS.type is FollowWaypoints
+    fields = NavigateToPose.Feedback.get_fields_and_field_types()
+    assert fields == {'current_pose': 'geometry_msgs/PoseStamped',
+                      'navigation_time': 'builtin_interfaces/Duration',
+                      'estimated_time_remaining': 'builtin_interfaces/Duration',
+                      'number_of_recoveries': 'int16', 'distance_remaining': 'float'}
+    assert FollowWaypoints.Goal.get_fields_and_field_types() == {
+        'number_of_loops': 'uint32', 'goal_index': 'uint32',
+        'poses': 'sequence<geometry_msgs/PoseStamped>'}
+    assert set(FollowWaypoints.Result.get_fields_and_field_types()) == {
+        'missed_waypoints', 'error_code', 'error_msg'}
 
 
 def test_what_a_decision_depends_on_is_reliable_and_kept_for_late_joiners():

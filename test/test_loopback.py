@@ -1,10 +1,12 @@
 """DDS stays on loopback: the profile is applied, and every socket of every process is local."""
+import os
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import psutil
 import pytest
 
-from sela_ros.tools.ros_env import loopback_profile, ros_environment
+from sela_ros.tools.ros_env import LOOPBACK_PROFILE, PACKAGE, loopback_profile, ros_environment
 
 from ros_graph import Client, NodeProcesses
 
@@ -19,6 +21,19 @@ def test_the_environment_applies_the_loopback_profile():
     # The one range in which the rmw leaves the profile's transports and locators alone.
     assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
     assert env['RMW_IMPLEMENTATION'] == 'rmw_fastrtps_cpp' and env['ROS_DOMAIN_ID'] == '42'
+
+
+def test_the_profile_is_the_installed_one_or_the_source_trees():
+    """On a ROS install (``colcon test``) the profile is the one the package installed, found
+    through the ament index; in a source checkout it may be the source tree's."""
+    from ament_index_python.packages import get_package_share_directory
+
+    installed = Path(get_package_share_directory(PACKAGE)) / 'config' / LOOPBACK_PROFILE
+    source = Path(__file__).resolve().parents[1] / 'config' / LOOPBACK_PROFILE
+    assert installed.is_file()
+    assert loopback_profile() in (installed, source)
+    # An environment with no ament prefix at all still finds it (the module's own prefix).
+    assert loopback_profile(os.devnull) in (installed.resolve(), source)
 
 
 def test_the_profile_allows_loopback_transports_only():

@@ -20,17 +20,37 @@ def _status(**values):
         0.0)
 
 
-def test_the_result_taken_is_that_of_the_mission_the_adapter_acknowledged():
+def test_the_result_taken_is_that_of_the_mission_its_goal_started():
     client = MissionClient(_Node(), lambda t: None)
-    client.goal, client._acked = [1.0, 0.5], False
-    # An earlier mission to the same goal, said again while the adapter is idle: not an ack,
-    # not this client's result.
-    client._diagnostics(_status(mission=3, goal='1.0 0.5', success=True, steps=4, adaptations=0))
-    assert not client._acked and client.result is None
-    client._diagnostics(_status(mission=4, goal='1.0 0.5', steps=0, adaptations=0))
-    assert client._acked
-    client._diagnostics(_status(mission=3, success=True, steps=4, adaptations=0))
+    client._goal_id = 'a1b2'
+    # An earlier mission's result, said again while the adapter is idle, and another
+    # client's goal: not this client's mission.
+    client._diagnostics(_status(mission=3, goal='1.0 0.5', success=True, steps=4, adaptations=0,
+                                goal_id=''))
+    client._diagnostics(_status(mission=4, goal='1.0 0.5', steps=0, adaptations=0,
+                                goal_id='ffff'))
+    assert client._mission is None and client.result is None
+    client._diagnostics(_status(mission=5, goal='1.0 0.5', steps=0, adaptations=0,
+                                goal_id='a1b2'))
+    assert client._mission == '5'
+    client._diagnostics(_status(mission=4, success=True, steps=4, adaptations=0))
     assert client.result is None
-    client._diagnostics(_status(mission=4, success=False, steps=100, adaptations=1))
+    # Said again after the adapter restarted: the goal is gone, the mission is the same.
+    client._diagnostics(_status(mission=5, success=False, steps=100, adaptations=1,
+                                goal_id=''))
     assert client.result is not None and not client.result.success
     assert client.result.steps == 100
+
+
+def test_statuses_heard_before_the_goal_was_answered_are_read_again():
+    client = MissionClient(_Node(), lambda t: None)
+    client._diagnostics(_status(mission=7, goal='1.0 0.5', steps=0, adaptations=0,
+                                goal_id='c3d4'))
+    client._diagnostics(_status(mission=7, goal='1.0 0.5', steps=2, adaptations=0, goals=2,
+                                goal_index=2, goal_reached='1.0 0.5', goal_reached_steps=2,
+                                goal_id='c3d4'))
+    assert client._mission is None and client.goals_reached == []
+    client._goal_id = 'c3d4'
+    for status in list(client.statuses):
+        client._read(status, again=True)
+    assert client._mission == '7' and len(client.goals_reached) == 1

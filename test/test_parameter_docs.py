@@ -51,7 +51,7 @@ def test_the_adapters_defaults_are_the_cores():
         # The archive's own value where the spec says auto (0): checked against the shipped
         # archive in test_launch_and_config.
         if specs[name] != 0:
-            assert specs[name] == config[name], name
+            assert specs[name] == config[adapter_params.SELA_NAMES.get(name, name)], name
     stepper = StepperConfig()
     for name, field in adapter_params.stepper_fields().items():
         assert specs[name] == getattr(stepper, field), name

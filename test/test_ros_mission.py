@@ -86,7 +86,7 @@ def _experiment_runner_mission(damage, seed, goal):
             plan['map.height']) == tuple(DEFAULT_MAP.values()) and 'map.obstacles' not in plan
     assert plan['planner.inflation'] == DEFAULT_INFLATION
     assert adapter['planner.lookahead'] == SELAConfig.planner_lookahead
-    assert adapter['priors'] == 'auto' and adapter['max_steps'] == StepperConfig.max_steps
+    assert adapter['priors.tables'] == 'auto' and adapter['max_steps'] == StepperConfig.max_steps
     assert adapter['adaptation.on_detection'] == StepperConfig.on_detection
     assert {k.split('.', 1)[1]: v for k, v in detector.items()
             if k.startswith('detection.')} == vars(DetectorConfig())

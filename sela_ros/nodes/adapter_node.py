@@ -4,7 +4,9 @@ A thin layer around :class:`sela_ros.core.stepper.MissionStepper` (plan -> ask -
 outcome -> verdict -> learn): each message or service answer becomes a stepper event, each
 command it returns a message, a service call or a file write; no callback waits. Outcomes
 and verdicts (``damage_detector/verdict``) pair with the command by id. ``~/adapt`` starts
-(or restarts) adaptation, ``~/clear`` forgets what was learned. What was learned and where
+(or restarts) adaptation, ``~/clear`` forgets what was learned. Missions come as goals on
+``goal_pose`` / ``goal_path`` or as nav2's actions ``navigate_to_pose`` / ``follow_waypoints``
+(:mod:`sela_ros.nodes.adapter_actions`), one at a time. What was learned and where
 the mission stands go to ``state_file`` after every step and come back at start-up
 (``resume``); archive and state file handling is in :mod:`sela_ros.nodes.adapter_support`.
 """
@@ -28,6 +30,7 @@ from sela_ros.nodes import adapter_support, markers
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes import interface as ifc
+from sela_ros.nodes.adapter_actions import MissionActions
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
@@ -78,6 +81,8 @@ class SelaAdapter(Node):
             io.AdaptRequested(), 'no archive loaded: set the archive parameter first', a))
         ifc.server(self, ifc.CLEAR, lambda q, a: self._ask(
             io.ClearRequested(), 'no archive loaded: nothing to clear', a))
+        # navigate_to_pose and follow_waypoints: the same missions, as nav2's actions.
+        self.actions = MissionActions(self)
         add_heartbeat(self)
         try:
             self._use_archive(self.values['archive'])
@@ -172,7 +177,7 @@ class SelaAdapter(Node):
         path = resolve_archive_path(path)
         archive, old = archive if archive is not None else load_archive(path), self.stepper
         self.archive, self.archive_path = archive, path
-        self.priors = adapter_support.load_priors(self.values['priors'], archive, path,
+        self.priors = adapter_support.load_priors(self.values['priors.tables'], archive, path,
                                                   self.get_logger())
         self.stepper = adapter_support.new_stepper(
             self.values, archive, self.priors, next_id=1 if old is None else old.next_id)
@@ -265,10 +270,13 @@ class SelaAdapter(Node):
                 elif isinstance(c, io.PublishReward):
                     self.pubs['reward'].publish(Float64(data=c.value))
                 elif isinstance(c, io.MissionEnded):
-                    pass  # its status, just before it, said it on diagnostics
+                    self.actions.mission_ended(c)  # its status, just before it, said it too
                 else:
-                    values = dict(c.values, saved='False' if error else 'True')
+                    # goal_id: the action goal that owns the mission ('' : a topic's goal).
+                    values = dict(c.values, saved='False' if error else 'True',
+                                  goal_id=self.actions.goal_id(c.values.get('mission', '')))
                     self._status(c.level, c.message, values)
+                    self.actions.status_released(values)
                     if 'success' in values:
                         self._result = (c.level, c.message, values, self.now())
                     if 'end_pose' in c.values and 'step' in c.values:
@@ -318,6 +326,7 @@ class SelaAdapter(Node):
             self.get_clock().now().to_msg()))
 
     def destroy_node(self):
+        self.actions.destroy()
         self.store.close()  # the last snapshot reaches the disk
         super().destroy_node()
 

@@ -30,16 +30,17 @@ PARAMETERS = (
          'the waypoint), 2 = the gait that leaves the robot best placed for the next one; 0 '
          "= the archive's (1 for a 2-D map, 2 for the 8-D map)", low=0, high=2,
          read_only=True),
-    Spec('priors', 'auto', "damage priors: tables of the archive's gaits on foreseen damages "
-         "(docs/archive.md); 'auto' = those shipped beside the archive if any, 'none' = the "
-         'intact map only (the paper), or a path (.npz from `make priors`)',
-         read_only=True),
-    Spec('priors.max.misfit', 0.6, "a damage prior is used only while its median squared error "
+    Spec('priors.tables', 'auto', "damage priors: tables of the archive's gaits on foreseen "
+         "damages (docs/archive.md); 'auto' = those shipped beside the archive if any, 'none' "
+         "= the intact map only (the paper), or a path (.npz from `make priors`)",
+         read_only=True, renamed_from='priors'),
+    Spec('priors.max_misfit', 0.6, "a damage prior is used only while its median squared error "
          'over the steps seen is below this (units of 0.1 m, 0.1 m, 0.25 rad); 0 = never',
-         low=0.0, high=1e6, read_only=True),
-    Spec('priors.max.misfit.reproduced', 2.0, 'the same cap for a damage prior that '
+         low=0.0, high=1e6, read_only=True, renamed_from='priors.max.misfit'),
+    Spec('priors.max_misfit_reproduced', 2.0, 'the same cap for a damage prior that '
          'reproduced every step from a standing start (spawned, reset or righted); below '
-         'priors.max.misfit = no exception', low=0.0, high=1e6, read_only=True),
+         'priors.max_misfit = no exception', low=0.0, high=1e6, read_only=True,
+         renamed_from='priors.max.misfit.reproduced'),
     Spec('priors.weights.sd', SELAConfig.priors_weights_sd, 'while no damage prior '
          'reproduced the steps from a standing start, the prior mean is the tables mixed by '
          'weights fitted to the steps seen (docs/priors_combination.md); this is the prior '
@@ -74,9 +75,14 @@ PARAMETERS = (
          read_only=True),
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
-             'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max.misfit',
-             'priors.max.misfit.reproduced', 'priors.weights.sd', 'planner.horizon',
+             'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
+             'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',
              'planner.lookahead')
+# Parameter name -> SELAConfig key, where they differ: the node's names must nest in the YAML
+# of ``ros2 param dump`` (no name a prefix of another); the core's keys are what the
+# experiments record.
+SELA_NAMES = {'priors.max_misfit': 'priors.max.misfit',
+              'priors.max_misfit_reproduced': 'priors.max.misfit.reproduced'}
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
@@ -87,7 +93,8 @@ _FIELDS = {'adaptation.on_detection': 'on_detection',
 
 
 def sela_config(values):
-    return {k: values[k] for k in SELA_KEYS}
+    """The SELA parameters among the node's ``values``, keyed as SELAConfig reads them."""
+    return {SELA_NAMES.get(k, k): values[k] for k in SELA_KEYS}
 
 
 def stepper_fields():

@@ -16,7 +16,7 @@ from sela_ros.nodes import adapter_params as params
 
 
 def load_priors(setting, archive, path, logger):
-    """The damage priors ``setting`` (the ``priors`` parameter) names for ``archive``; None
+    """The damage priors ``setting`` (the ``priors.tables`` parameter) names for ``archive``; None
     (logged) if there are none or they cannot be used: SELA then adapts from the intact map
     alone."""
     try:

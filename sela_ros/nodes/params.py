@@ -9,6 +9,11 @@ refused and nothing changes. ``ros2 param describe`` shows the description, the 
 the read-only flag. An integer is accepted where a double is expected (``ros2 param set
 /planner planner.lookahead 1``) and stored as a double.
 
+No name is a prefix of another one dot-segment-wise (``priors`` beside ``priors.max``): the
+YAML that ``ros2 param dump`` writes nests the segments, and cannot hold both
+(:func:`nesting_conflicts`). A parameter renamed for that keeps its earlier name readable from a
+start-up file for one release (``Spec.renamed_from``).
+
 The checks are ROS-free (property-tested); only :func:`declare` touches rclpy.
 """
 import math
@@ -81,6 +86,8 @@ class Spec:
         rule: an extra check ``value -> problem or None`` after type and range.
         kind: ``double``, ``integer``, ``bool``, ``string``, ``double_array``,
             ``integer_array`` or ``string_array``; inferred from ``default`` when None.
+        renamed_from: an earlier name, still read from a parameter file or ``-p`` (with a
+            warning) for one release.
     """
     name: str
     default: object
@@ -91,6 +98,7 @@ class Spec:
     read_only: bool = False
     rule: Callable | None = None
     kind: str | None = None
+    renamed_from: str | None = None
 
     @property
     def type(self):
@@ -228,6 +236,7 @@ def declare(node, specs, on_change=None):
     # Values given at start-up are coerced the way a run-time set is (pre-set callback).
     overrides = getattr(node, '_parameter_overrides', None)
     if isinstance(overrides, dict):
+        take_renamed(overrides, specs.values(), node.get_logger().warn)
         for name, param in list(overrides.items()):
             if name in specs:
                 overrides[name] = coerce_batch([param])[0]
@@ -259,6 +268,32 @@ def declare(node, specs, on_change=None):
         declaring[0] = False
     values = {name: node.get_parameter_or(name) for name in specs}
     return {name: None if param is None else param.value for name, param in values.items()}
+
+
+def nesting_conflicts(names):
+    """Pairs ``(a, b)`` of ``names`` where ``a`` is a dot-segment prefix of ``b``
+    (``priors`` and ``priors.max``): ``ros2 param dump`` nests segments into YAML mappings,
+    and a value cannot also be a mapping."""
+    segments = {name: tuple(name.split('.')) for name in names}
+    return sorted((a, b) for a, sa in segments.items() for b, sb in segments.items()
+                  if a != b and sb[:len(sa)] == sa)
+
+
+def take_renamed(overrides, specs, warn):
+    """Move start-up values given under a spec's earlier name (``renamed_from``) to its
+    name in ``overrides`` (``{name: Parameter}``), calling ``warn(message)`` for each.
+
+    The earlier name wins over the new one: only a user's own file or ``-p`` still says it
+    (layered over the shipped configuration, which has the new name).
+    """
+    for spec in specs:
+        old = spec.renamed_from
+        if not old or old not in overrides:
+            continue
+        param = overrides.pop(old)
+        overrides[spec.name] = type(param)(spec.name, value=param.value)
+        warn(f'parameter {old} is now {spec.name}: read as {spec.name} = {param.value!r}; '
+             'rename it in the parameter file (the old name will stop working)')
 
 
 def first_problem(changes, rules):

@@ -1,11 +1,17 @@
 """``MissionClient``: send a goal to a sela_ros stack and follow its mission.
 
-In the spirit of nav2_simple_commander's ``BasicNavigator``: :meth:`MissionClient.go_to_pose`,
-:meth:`~MissionClient.follow_goals` (a mission of several goals, as ``followWaypoints``),
-:meth:`~MissionClient.is_task_complete`, :meth:`~MissionClient.get_feedback`,
-:meth:`~MissionClient.get_result`, and a ``namespace`` argument to drive a stack started
-under a namespace. The demo, the tests and the benchmarks use it; it is the one reader of
-the adapter's mission status (``diagnostics``, name ``sela_adapter: mission``).
+A thin client of the adapter's nav2 actions, in the spirit of nav2_simple_commander's
+``BasicNavigator``: :meth:`MissionClient.go_to_pose` sends a ``navigate_to_pose`` goal,
+:meth:`~MissionClient.follow_goals` a ``follow_waypoints`` goal (several goals in order),
+:meth:`~MissionClient.cancel_task` cancels it; :meth:`~MissionClient.is_task_complete`,
+:meth:`~MissionClient.get_feedback`, :meth:`~MissionClient.get_result`, and a ``namespace``
+argument to drive a stack started under a namespace. The goal's handle pairs the mission with
+this client: the adapter's statuses on ``diagnostics`` (name ``sela_adapter: mission``) name
+the goal that owns their mission (``goal_id``), and the client reads SELA's own detail from
+them (every step's gait, prediction and reward, detections, goals reached), and the result,
+which the adapter says again while idle, so that it is heard even when the adapter restarted
+mid-mission and the action's own result is lost with it. The demo, the tests and the
+benchmarks use it.
 
 It runs on a node its caller owns (and spins), so that the caller can record or watch other
 topics on the same node: pass ``spin_once(timeout_sec)``.
@@ -97,11 +103,12 @@ class MissionClient:
         self.namespace = namespace.rstrip('/')
         self.statuses = deque(maxlen=STATUSES_KEPT)  # heard on diagnostics (any node)
         self.steps, self.detections, self.goals_reached = [], [], []
-        self.goal = self.result = self._acked = self._mission = None
+        self.result = self.action_result = self._mission = None
+        self.goal_handle = None  # of the goal sent last
+        self._goal_id = None  # its id as statuses say it
+        self._actions = {}  # created at the first goal (a stand-in node has none)
         self._goal_pub = node.create_publisher(ifc.GOAL.type, self.name(ifc.GOAL.name),
                                                ifc.GOAL.qos)
-        self._goals_pub = node.create_publisher(ifc.GOAL_PATH.type,
-                                                self.name(ifc.GOAL_PATH.name), ifc.GOAL_PATH.qos)
         node.create_subscription(ifc.DIAGNOSTICS.type, self.name(ifc.DIAGNOSTICS.name),
                                  self._diagnostics, ifc.DIAGNOSTICS.qos)
 
@@ -111,33 +118,43 @@ class MissionClient:
             return relative
         return f'{self.namespace}/{relative}'
 
+    def _action(self, action):
+        if action.name not in self._actions:
+            self._actions[action.name] = ifc.action_client(self.node, action, self.namespace)
+        return self._actions[action.name]
+
     def _diagnostics(self, msg):
         for status in msg.status:
             self.statuses.append(status)
-            if status.name != ifc.MISSION_STATUS:
-                continue
-            values = conv.status_values(status)
-            if 'step' in values:
-                self.steps.append(StepFeedback.from_values(values))
-            elif 'adapt' in values:
-                self.detections.append(Detection(int(values['behavior_id']),
-                                                 float(values['error']), values['threshold'],
-                                                 values['adapt']))
-            elif 'goal_reached' in values and self._acked:
-                self.goals_reached.append(GoalReached(
-                    int(values['goal_index']) - 1, np.array(values['goal_reached'].split(),
-                                                            float),
-                    int(values['goal_reached_steps'])))
-            elif ('goal' in values and 'success' not in values and self.goal is not None
-                    and np.allclose(np.array(values['goal'].split(), float), self.goal)):
-                self._acked = True
-                self._mission = values.get('mission')
-            # The result of this client's mission (said again while the adapter is idle), not
-            # of an earlier one to the same goal.
-            if ('success' in values and self._acked
-                    and values.get('mission') == self._mission):
-                self.result = MissionResult(values['success'] == 'True', int(values['steps']),
-                                            int(values['adaptations']), status.message, values)
+            if status.name == ifc.MISSION_STATUS:
+                self._read(status)
+
+    def _read(self, status, again=False):
+        """Take what a mission status says (``again``: one heard before, for this client's
+        mission only: its steps and detections are already in)."""
+        values = conv.status_values(status)
+        if (self._mission is None and self._goal_id is not None
+                and values.get('goal_id') == self._goal_id):
+            self._mission = values.get('mission')  # this client's mission
+        mine = self._mission is not None and values.get('mission') == self._mission
+        if again and not mine:
+            return
+        if 'step' in values and not again:
+            self.steps.append(StepFeedback.from_values(values))
+        elif 'adapt' in values and not again:
+            self.detections.append(Detection(int(values['behavior_id']),
+                                             float(values['error']), values['threshold'],
+                                             values['adapt']))
+        elif 'goal_reached' in values and mine:
+            self.goals_reached.append(GoalReached(
+                int(values['goal_index']) - 1, np.array(values['goal_reached'].split(),
+                                                        float),
+                int(values['goal_reached_steps'])))
+        # The result of this client's mission (said again while the adapter is idle), not
+        # of an earlier one.
+        if 'success' in values and mine:
+            self.result = MissionResult(values['success'] == 'True', int(values['steps']),
+                                        int(values['adaptations']), status.message, values)
 
     def spin_until(self, predicate, timeout, what='condition'):
         deadline = time.monotonic() + timeout
@@ -146,52 +163,72 @@ class MissionClient:
                 raise TimeoutError(f'timed out after {timeout} s waiting for {what}')
             self.spin_once(0.05)
 
-    def wait_until_ready(self, timeout=60.0, publisher=None, nodes=ifc.NODES):
-        """Wait until the adapter hears goals (on ``publisher``'s topic; default goal_pose)
-        and this client hears ``nodes`` (their statuses on ``diagnostics``: what one says
-        before it is heard would be lost)."""
-        publisher = publisher or self._goal_pub
+    def wait_until_ready(self, timeout=60.0, nodes=ifc.NODES):
+        """Wait until the adapter's actions are served, ``goal_pose`` is heard (for
+        :meth:`publish_goal`) and this client hears ``nodes`` (their statuses on
+        ``diagnostics``: what one says before it is heard would be lost)."""
         topic = self.node.resolve_topic_name(self.name(ifc.DIAGNOSTICS.name))
+        clients = [self._action(a) for a in ifc.ACTIONS]
 
         def ready():
             talkers = {i.node_name for i in self.node.get_publishers_info_by_topic(topic)}
-            return set(nodes) <= talkers and publisher.get_subscription_count() > 0
-        self.spin_until(ready, timeout, f"{', '.join(nodes)} on {topic}")
+            return (set(nodes) <= talkers and all(c.server_is_ready() for c in clients)
+                    and self._goal_pub.get_subscription_count() > 0)
+        self.spin_until(ready, timeout, f"{', '.join(nodes)} on {topic} and the actions")
 
     def wait_for_goal_listeners(self, count, timeout=60.0):
-        """Wait until ``count`` nodes hear goals (e.g. the planner and the adapter)."""
+        """Wait until ``count`` nodes hear goals on ``goal_pose`` (the planner, the adapter)."""
         self.spin_until(lambda: self._goal_pub.get_subscription_count() >= count, timeout,
                         f'{count} subscriber(s) of {self.name(ifc.GOAL.name)}')
 
-    def go_to_pose(self, x, y, frame_id='odom', timeout=60.0, resend_period=2.0):
-        """Send the goal (x, y); returns once the adapter has taken it (resent until then:
-        ``goal_pose`` is volatile, as RViz sends it)."""
-        self._send(self._goal_pub, conv.pose_stamped((x, y), frame_id=frame_id), (x, y),
-                   timeout, resend_period)
+    def go_to_pose(self, x, y, frame_id='odom', timeout=60.0):
+        """Send the goal (x, y) (``navigate_to_pose``); returns once the adapter has taken it
+        (or ended it at once: :attr:`result` then says why)."""
+        goal = ifc.NAVIGATE_TO_POSE.type.Goal(pose=conv.pose_stamped((x, y), frame_id=frame_id))
+        self._send(ifc.NAVIGATE_TO_POSE, goal, timeout)
 
-    def follow_goals(self, goals, frame_id='odom', timeout=60.0, resend_period=2.0):
-        """Send a mission of several goals ``[(x, y), ...]``, visited in order, as a
-        nav_msgs/Path on ``goal_path``; returns once the adapter has taken it. Each goal
-        reached is appended to :attr:`goals_reached`; the result comes after the last."""
-        path = conv.path_to_msg(np.asarray(goals, dtype=float), frame_id=frame_id)
-        self._send(self._goals_pub, path, goals[0], timeout, resend_period)
+    def follow_goals(self, goals, frame_id='odom', timeout=60.0):
+        """Send a mission of several goals ``[(x, y), ...]``, visited in order
+        (``follow_waypoints``); returns once the adapter has taken it. Each goal reached is
+        appended to :attr:`goals_reached`; the result comes after the last."""
+        poses = [conv.pose_stamped(g, frame_id=frame_id) for g in np.asarray(goals, float)]
+        self._send(ifc.FOLLOW_WAYPOINTS, ifc.FOLLOW_WAYPOINTS.type.Goal(poses=poses), timeout)
 
-    def _send(self, publisher, msg, first_goal, timeout, resend_period):
-        self.wait_until_ready(timeout, publisher)
-        self.goal = np.array(first_goal, dtype=float)
-        self.result, self._acked, self._mission, self.goals_reached = None, False, None, []
-        deadline = time.monotonic() + timeout
-        while not self._acked:
-            publisher.publish(msg)
-            try:
-                self.spin_until(lambda: self._acked, resend_period, 'the goal')
-            except TimeoutError:
-                if time.monotonic() > deadline:
-                    raise TimeoutError(f'the adapter did not take the goal {tuple(first_goal)} '
-                                       f'within {timeout} s') from None
+    def _send(self, action, goal, timeout):
+        self.wait_until_ready(timeout)
+        self.result = self.action_result = self._mission = self._goal_id = None
+        self.goals_reached = []
+        sent = self._action(action).send_goal_async(goal)
+        self.spin_until(sent.done, timeout, f'the answer to the {action.name} goal')
+        handle = sent.result()
+        if not handle.accepted:
+            raise RuntimeError(f'the adapter rejected the {action.name} goal (no archive '
+                               'loaded?)')
+        self.goal_handle, self._goal_id = handle, bytes(handle.goal_id.uuid).hex()
+        handle.get_result_async().add_done_callback(self._action_done)
+        # Its first statuses may have been heard before the goal's answer: read them again.
+        for status in [s for s in self.statuses if s.name == ifc.MISSION_STATUS]:
+            self._read(status, again=True)
+        self.spin_until(lambda: self._mission is not None or self.action_result is not None,
+                        timeout, f'the adapter to take the {action.name} goal')
+        if self._mission is None:  # ended before it started: refused
+            r = self.action_result.result
+            self.result = MissionResult(False, 0, 0, r.error_msg, {'error_code': r.error_code})
+
+    def _action_done(self, future):
+        self.action_result = future.result()
+
+    def cancel_task(self, timeout=30.0):
+        """Cancel the goal sent last: the mission ends after the running gait."""
+        if self.goal_handle is None:
+            return False
+        future = self.goal_handle.cancel_goal_async()
+        self.spin_until(future.done, timeout, 'the answer to the cancel')
+        return bool(future.result().goals_canceling)
 
     def publish_goal(self, x, y, frame_id='odom'):
-        """Send a goal once, without waiting for it to be taken (e.g. a bad goal)."""
+        """Send a goal once on ``goal_pose``, as RViz does, without waiting for it to be
+        taken (e.g. a bad goal)."""
         self._goal_pub.publish(conv.pose_stamped((x, y), frame_id=frame_id))
 
     def is_task_complete(self):

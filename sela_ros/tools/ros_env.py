@@ -51,12 +51,15 @@ def ros_environment(domain_id=None, base=None):
 
 
 def loopback_profile(ament_prefix_path=None):
-    """Path of ``fastdds_loopback.xml``: installed (``<prefix>/share/sela_ros/config``) or in
-    the source tree; None when neither exists."""
+    """Path of ``fastdds_loopback.xml``: installed (``<prefix>/share/sela_ros/config`` of an
+    ament prefix, then of the prefix this module is installed in) or in the source tree;
+    None when none has it."""
     prefixes = (ament_prefix_path or os.environ.get('AMENT_PREFIX_PATH') or sys.prefix)
+    here = Path(__file__).resolve()
     candidates = [Path(p) / 'share' / PACKAGE / 'config' for p in prefixes.split(os.pathsep)
                   if p]
-    candidates.append(Path(__file__).resolve().parents[2] / 'config')
+    candidates += [p / 'share' / PACKAGE / 'config' for p in here.parents]
+    candidates.append(here.parents[2] / 'config')
     for folder in candidates:
         if (folder / LOOPBACK_PROFILE).is_file():
             return folder / LOOPBACK_PROFILE

@@ -1,0 +1,256 @@
+"""The ``sela_adapter``'s missions as nav2's actions: ``navigate_to_pose`` (NavigateToPose) and
+``follow_waypoints`` (FollowWaypoints), with nav2 Jazzy's types.
+
+A goal becomes the same stepper event as a goal on ``goal_pose`` or ``goal_path``
+(:mod:`sela_ros.nodes.adapter_node`); the goal handle is bound to the mission it started, by the
+stepper's mission id, so that the mission's statuses become the goal's feedback and its
+:class:`~sela_ros.core.stepper_io.MissionEnded` the goal's result. One mission at a time, as
+nav2: a new goal (an action's, or one on the topics) ends the running mission and aborts its
+goal ("preempted"). A cancel ends the mission after the running gait (no gait after it); the
+goal is then CANCELED. A goal off the map or in an obstacle is accepted and aborted at once,
+with ``error_code`` and ``error_msg`` saying why; a mission that ends without reaching its goal
+is aborted with the stepper's reason.
+
+No callback waits: the execute callbacks are coroutines that await the mission's end, which
+the node's event loop resolves (:meth:`MissionActions.mission_ended`).
+"""
+import math
+from dataclasses import dataclass, field
+
+from builtin_interfaces.msg import Duration
+from nav2_msgs.msg import MissedWaypoint
+from nav_msgs.msg import Path
+from rclpy.action import CancelResponse, GoalResponse
+from rclpy.task import Future
+
+from sela_ros.core import stepper_io as io
+from sela_ros.core.mission_status import vector_from_text
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import interface as ifc
+
+
+@dataclass
+class Binding:
+    """An action goal and the mission it started."""
+
+    handle: object  # rclpy ServerGoalHandle
+    action: ifc.Action
+    goals: list  # [(x, y), ...] in the odom frame, in order
+    poses: list  # the goal's PoseStamped, for missed waypoints
+    first_index: int  # FollowWaypoints: the rank in ``poses`` of goals[0]
+    started: float  # wall time (s)
+    ended: Future = field(default_factory=Future)  # resolved with the MissionEnded
+    start_distance: float = None
+
+
+def _duration(seconds):
+    seconds = max(0.0, float(seconds)) if math.isfinite(seconds) else 0.0
+    sec = int(seconds)
+    return Duration(sec=sec, nanosec=min(999_999_999, int(round((seconds - sec) * 1e9))))
+
+
+def goal_id_text(handle):
+    """A goal handle's id as the hex text statuses carry (``goal_id``)."""
+    return bytes(handle.goal_id.uuid).hex()
+
+
+class MissionActions:
+    """The two action servers of ``node`` (a :class:`~sela_ros.nodes.adapter_node.
+    SelaAdapter`), and which goal each mission belongs to."""
+
+    def __init__(self, node):
+        self.node = node
+        self.bindings = {}  # mission id -> Binding
+        self._cancels = []  # goal handles whose cancel was accepted, to feed after it
+        self._cancel_ready = node.create_guard_condition(self._feed_cancels)
+        self.servers = [
+            ifc.action_server(node, action, self._execute, goal_callback=self._goal,
+                              cancel_callback=self._cancel)
+            for action in ifc.ACTIONS]
+
+    def destroy(self):
+        for server in self.servers:
+            server.destroy()
+
+    # --- goals -----------------------------------------------------------------------------
+
+    def _goal(self, request):
+        # No archive, no stepper: nothing could walk to it.
+        return GoalResponse.ACCEPT if self.node.stepper is not None else GoalResponse.REJECT
+
+    def _cancel(self, handle):
+        self._cancels.append(handle)
+        self._cancel_ready.trigger()  # fed once the goal is CANCELING (after this returns)
+        return CancelResponse.ACCEPT
+
+    def _feed_cancels(self):
+        handles, self._cancels = self._cancels, []
+        stepper = self.node.stepper
+        for handle in handles:
+            mission = self._mission_of(handle)
+            if mission is not None and stepper is not None and stepper.running() \
+                    and stepper.mission_id == mission:
+                self.node._feed(io.CancelRequested('canceled by its action client'))
+
+    def _mission_of(self, handle):
+        return next((m for m, b in self.bindings.items() if b.handle is handle), None)
+
+    async def _execute(self, handle):
+        action = self._action_of(handle)
+        try:
+            goals, poses, first = self._goals_of(action, handle.request)
+        except conv.MessageError as exc:
+            return self._finish(handle, action, False, ifc.UNKNOWN_ERROR, str(exc), [])
+        problem = self._problem(goals)
+        if problem is not None:
+            index, code, why = problem
+            message = (f'goal ({goals[index][0]:.2f}, {goals[index][1]:.2f}) refused: {why}')
+            self.node._report(io.Level.ERROR, message)
+            return self._finish(handle, action, False, code, message,
+                                self._missed(poses, first, index, code))
+        binding = Binding(handle, action, goals, poses, first, self.node.now())
+        stepper = self.node.stepper
+        before = stepper.mission_id
+        self.node.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
+        event = (io.GoalReceived(goals[0]) if action is ifc.NAVIGATE_TO_POSE
+                 else io.GoalsReceived(tuple(goals)))
+        self.node._feed(event)
+        stepper = self.node.stepper
+        if stepper.mission_id == before:
+            if not (stepper.running() and tuple(stepper.goal) == tuple(goals[0])):
+                return self._finish(handle, action, False, ifc.UNKNOWN_ERROR,
+                                    'the adapter did not take the goal (see its log)',
+                                    self._missed(poses, first, 0, ifc.UNKNOWN_ERROR))
+            # The goal the mission is walking to: it goes on, under this goal now.
+            old = self.bindings.pop(before, None)
+            if old is not None:
+                old.ended.set_result(io.MissionEnded(
+                    before, False, 'preempted', 'preempted by a new goal (the mission goes '
+                    'on under it)', stepper.steps))
+        self.bindings[stepper.mission_id] = binding
+        if handle.is_cancel_requested:  # canceled before its mission started
+            self.node._feed(io.CancelRequested('canceled by its action client'))
+        ended = await binding.ended
+        return self._result(binding, ended)
+
+    def _action_of(self, handle):
+        return (ifc.FOLLOW_WAYPOINTS if hasattr(handle.request, 'poses')
+                else ifc.NAVIGATE_TO_POSE)
+
+    def _goals_of(self, action, request):
+        """The mission's goals in the odom frame, the poses as sent and the rank of the first
+        goal among them (FollowWaypoints' ``goal_index``; ``number_of_loops`` more rounds)."""
+        frame = self.node.frame_id
+        if action is ifc.NAVIGATE_TO_POSE:
+            goal = tuple(conv.goal_from_pose_stamped(request.pose, frame))
+            return [goal], [request.pose], 0
+        poses = list(request.poses)
+        if not poses:
+            raise conv.MessageError('follow_waypoints: the goal has no poses')
+        first = int(request.goal_index)
+        if first >= len(poses):
+            raise conv.MessageError(f'follow_waypoints: goal_index {first} is past the '
+                                    f'{len(poses)} poses')
+        path = Path(poses=poses[first:] + poses * int(request.number_of_loops))
+        path.header.frame_id = poses[0].header.frame_id
+        return list(conv.goals_from_path(path, frame)), poses, first
+
+    def _problem(self, goals):
+        """``(index, error_code, why)`` of the first goal the map rules out, or None."""
+        grid = self.node.map
+        if grid is None:
+            return None
+        for i, goal in enumerate(goals):
+            why = grid.goal_problem(goal)
+            if why is not None:
+                code = ifc.GOAL_OUTSIDE_MAP if not grid.in_map(goal) else ifc.GOAL_OCCUPIED
+                return i, code, why
+        return None
+
+    # --- what the mission says -------------------------------------------------------------
+
+    def goal_id(self, mission):
+        """The id of the goal that owns ``mission`` (text), '' for a goal sent on a topic."""
+        binding = self.bindings.get(int(mission)) if str(mission).isdigit() else None
+        return goal_id_text(binding.handle) if binding is not None else ''
+
+    def status_released(self, values):
+        """A mission status went out: a step (or a goal reached) is the goal's feedback."""
+        binding = self.bindings.get(int(values.get('mission', -1)))
+        if binding is None or not binding.handle.is_active:
+            return
+        pose = values.get('end_pose')
+        index = int(values.get('goal_index', 1)) - 1
+        if binding.action is ifc.FOLLOW_WAYPOINTS:
+            feedback = ifc.FOLLOW_WAYPOINTS.type.Feedback(
+                current_waypoint=self._rank(binding, max(0, index)))
+            binding.handle.publish_feedback(feedback)
+            return
+        if pose is None:
+            return
+        pose = vector_from_text(pose)
+        goal = binding.goals[min(max(0, index), len(binding.goals) - 1)]
+        left = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+        if binding.start_distance is None:
+            start = vector_from_text(values['pose']) if 'pose' in values else pose
+            binding.start_distance = math.hypot(goal[0] - start[0], goal[1] - start[1])
+        elapsed = self.node.now() - binding.started
+        progress = binding.start_distance - left
+        feedback = ifc.NAVIGATE_TO_POSE.type.Feedback(
+            current_pose=conv.pose_stamped(pose[:2], pose[2],
+                                           stamp=self.node.get_clock().now().to_msg(),
+                                           frame_id=self.node.frame_id),
+            navigation_time=_duration(elapsed),
+            estimated_time_remaining=_duration(elapsed * left / progress
+                                               if progress > 1e-3 else 0.0),
+            # SELA's recoveries: adaptations (re)started, and falls it got up from.
+            number_of_recoveries=min(32767, int(values.get('adaptations', 0))
+                                     + int(values.get('failed_steps', 0))),
+            distance_remaining=float(left))
+        binding.handle.publish_feedback(feedback)
+
+    def _rank(self, binding, index):
+        """The rank in the goal's ``poses`` of the mission's goal ``index`` (from 0)."""
+        return (binding.first_index + index) % len(binding.poses)
+
+    def mission_ended(self, ended):
+        """The mission ``ended`` (a MissionEnded, released after its save): its goal ends."""
+        binding = self.bindings.pop(ended.mission_id, None)
+        if binding is not None and not binding.ended.done():
+            binding.ended.set_result(ended)
+
+    def _result(self, binding, ended):
+        handle, action = binding.handle, binding.action
+        code = ifc.END_ERROR_CODES.get(ended.code, ifc.UNKNOWN_ERROR)
+        missed = []
+        if not ended.success:
+            missed = self._missed(binding.poses, binding.first_index, ended.goals_reached,
+                                  code, len(binding.goals))
+        if ended.code == 'canceled' and handle.is_cancel_requested:
+            handle.canceled()
+            return self._message(action, code, ended.reason, missed)
+        return self._finish(handle, action, ended.success, code, ended.reason, missed)
+
+    def _missed(self, poses, first, reached, code, count=None):
+        """The waypoints of a FollowWaypoints goal not reached, from the ``reached``-th of the
+        mission's goals on (``count`` goals in all)."""
+        count = len(poses) - first if count is None else count
+        return [MissedWaypoint(index=(first + i) % len(poses),
+                               goal=poses[(first + i) % len(poses)], error_code=code)
+                for i in range(reached, count)]
+
+    def _finish(self, handle, action, success, code, message, missed):
+        if success:
+            handle.succeed()
+        else:
+            handle.abort()
+        return self._message(action, code, message, missed)
+
+    def _message(self, action, code, message, missed):
+        result = action.type.Result(error_code=int(code), error_msg=message)
+        if action is ifc.FOLLOW_WAYPOINTS:
+            # nav2's waypoint follower has its own codes; each missed waypoint carries why.
+            result.missed_waypoints = missed
+            if code:
+                result.error_code = action.type.Result.UNKNOWN
+        return result

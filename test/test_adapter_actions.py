@@ -1,0 +1,66 @@
+"""The adapter's action goals as missions, without DDS: FollowWaypoints' ``goal_index`` and
+``number_of_loops``, the waypoints reported missed, the result codes."""
+from types import SimpleNamespace
+
+import pytest
+from nav2_msgs.action import FollowWaypoints, NavigateToPose
+
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import interface as ifc
+from sela_ros.nodes.adapter_actions import MissionActions
+
+
+@pytest.fixture
+def actions():
+    stand_in = MissionActions.__new__(MissionActions)  # no node: only the translation
+    stand_in.node = SimpleNamespace(frame_id='odom', map=None)
+    return stand_in
+
+
+def _poses(*xy):
+    return [conv.pose_stamped(p, frame_id='odom') for p in xy]
+
+
+def test_follow_waypoints_starts_at_goal_index_and_loops(actions):
+    poses = _poses((1, 0), (1, 1), (0, 1))
+    goal = FollowWaypoints.Goal(poses=poses, goal_index=1, number_of_loops=1)
+    goals, sent, first = actions._goals_of(ifc.FOLLOW_WAYPOINTS, goal)
+    assert goals == [(1, 1), (0, 1), (1, 0), (1, 1), (0, 1)] and first == 1 and sent == poses
+    binding = SimpleNamespace(first_index=first, poses=poses)
+    assert [actions._rank(binding, i) for i in range(len(goals))] == [1, 2, 0, 1, 2]
+    # Two of the five reached: the rest are missed, each with its rank among the poses.
+    missed = actions._missed(poses, first, 2, ifc.FAILED_TO_MAKE_PROGRESS, len(goals))
+    assert [m.index for m in missed] == [0, 1, 2]
+    assert all(m.error_code == ifc.FAILED_TO_MAKE_PROGRESS for m in missed)
+
+
+@pytest.mark.parametrize('goal, problem', [
+    (FollowWaypoints.Goal(poses=[]), 'no poses'),
+    (FollowWaypoints.Goal(poses=_poses((1, 0)), goal_index=1), 'past the 1 poses'),
+    (FollowWaypoints.Goal(poses=[conv.pose_stamped((1, 0), frame_id='map')]), "frame 'map'"),
+])
+def test_a_bad_waypoint_goal_says_what_is_wrong(actions, goal, problem):
+    with pytest.raises(conv.MessageError, match=problem):
+        actions._goals_of(ifc.FOLLOW_WAYPOINTS, goal)
+
+
+def test_navigate_to_pose_takes_the_pose_in_the_odom_frame(actions):
+    goal = NavigateToPose.Goal(pose=conv.pose_stamped((0.5, -0.2), frame_id='odom'))
+    assert actions._goals_of(ifc.NAVIGATE_TO_POSE, goal)[0] == [(0.5, -0.2)]
+    with pytest.raises(conv.MessageError, match="frame 'map'"):
+        actions._goals_of(ifc.NAVIGATE_TO_POSE, NavigateToPose.Goal(
+            pose=conv.pose_stamped((0.5, -0.2), frame_id='map')))
+
+
+def test_result_codes_are_navs_and_waypoints_carry_their_own(actions):
+    nav = actions._message(ifc.NAVIGATE_TO_POSE, ifc.GOAL_OUTSIDE_MAP, 'off the map', [])
+    assert (nav.error_code, nav.error_msg) == (204, 'off the map')
+    poses = _poses((1, 0), (1, 1))
+    missed = actions._missed(poses, 0, 1, ifc.NO_VALID_PATH)
+    follow = actions._message(ifc.FOLLOW_WAYPOINTS, ifc.NO_VALID_PATH, 'no path', missed)
+    assert follow.error_code == FollowWaypoints.Result.UNKNOWN
+    assert [(m.index, m.error_code) for m in follow.missed_waypoints] == [(1, 208)]
+    done = actions._message(ifc.FOLLOW_WAYPOINTS, 0, 'goal reached', [])
+    assert done.error_code == 0 and list(done.missed_waypoints) == []
+    assert {code: ifc.END_ERROR_CODES[code] for code in ('succeeded', 'canceled')} == {
+        'succeeded': 0, 'canceled': 0}
