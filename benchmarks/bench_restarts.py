@@ -27,7 +27,7 @@ from sela_ros.core.archive_paths import default_archive_path
 from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
 from sela_ros.core.damage_priors import resolve_priors
 from sela_ros.core.learning import make_sela
-from sela_ros.core.mission import as_seen_in_odometry, waypoint_for
+from sela_ros.core.mission import as_seen_in_odometry
 from sela_ros.core.planning import GridPlanner, PlanningError
 from sela_ros.core.stepper import MissionStepper
 from sela_ros.core.stepper_io import (
@@ -118,9 +118,9 @@ class Mission:
             events = []
             if isinstance(command, RequestPlan):
                 try:
-                    waypoint, _ = waypoint_for(self.planner, command.start, command.goal,
-                                               self.lookahead)
-                    events.append(PlanReceived(command.step, command.start, waypoint))
+                    path = self.planner(np.asarray(command.start, float)[:2], command.goal)
+                    events.append(PlanReceived(command.step, command.start,
+                                               path=tuple(map(tuple, path))))
                 except PlanningError as exc:
                     events.append(PlanReceived(command.step, command.start, None, str(exc)))
             elif isinstance(command, SendGait):
