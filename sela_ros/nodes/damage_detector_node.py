@@ -44,7 +44,7 @@ def parameters(defaults):
         Spec('outcome.max_displacement', OutcomeLimits().max_displacement, 'an outcome that '
              'moves the robot further than this in one gait is refused, not judged', low=1e-3,
              high=1e6, unit=' m'),
-        Spec('heartbeat.timeout', 5.0, 'wall time from start-up before a watched node never '
+        Spec('heartbeat.timeout', 10.0, 'wall time from start-up before a watched node never '
              'seen alive is reported silent (a killed node is reported when its liveliness '
              'lease expires)', low=0.1, high=3600.0, unit=' s'),
         Spec('heartbeat.nodes', [ifc.SIM_BRIDGE, ifc.PLANNER, ifc.SELA_ADAPTER],
@@ -79,7 +79,8 @@ class DamageDetectorNode(Node):
 
     @guard
     def liveliness_callback(self, node, info):
-        change = self.watch.changed(node, info.alive_count, info.alive_count_change)
+        change = self.watch.changed(node, info.alive_count, info.alive_count_change,
+                                    info.not_alive_count_change)
         if change == 'lost':
             self.get_logger().error(self.watch.why(node))
             self._publish_liveness(node, DiagnosticStatus.ERROR, self.watch.why(node))

@@ -66,12 +66,15 @@ class LivenessWatch:
         self.lost = {}  # node -> when it was lost
         self.silent = set()
 
-    def changed(self, node, alive_count, alive_change, now=None):
-        """A liveliness-changed event on ``node``'s topic; returns 'lost', 'alive' or None
-        (nothing to report)."""
+    def changed(self, node, alive_count, alive_change, not_alive_change=0, now=None):
+        """A liveliness-changed event on ``node``'s topic (its alive count, and the changes
+        of the alive and not-alive counts since the last event); returns 'lost', 'alive' or
+        None (nothing to report)."""
         now = time.monotonic() if now is None else now
-        self.alive[node] = int(alive_count)
-        if alive_change < 0:
+        before, self.alive[node] = self.alive[node], int(alive_count)
+        # Changes are summed between two reads: a writer lost while another appeared shows
+        # in the not-alive count, or in an alive count lower than before.
+        if alive_change < 0 or not_alive_change > 0 or alive_count < before:
             # One of its writers died: reported even while another writer (a restarted
             # node not yet gone from the graph, or someone else's) is still alive.
             self.lost[node] = now
