@@ -18,6 +18,7 @@ import os
 import statistics
 import time
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 import yaml
@@ -39,9 +40,9 @@ from sela_ros.core.stepper_io import (
     RequestReset,
     ResetDone,
     SendGait,
-    StepperConfig,
     VerdictReceived,
 )
+from sela_ros.nodes import adapter_params
 from sela_ros.nodes.planner_node import grid_from_description
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.hexapod import Hexapod
@@ -58,7 +59,7 @@ def node_parameters():
 class Mission:
     """The node's configuration, in process, over successive goals."""
 
-    def __init__(self, damage, seed, max_steps=40, verbose=False):
+    def __init__(self, damage, seed, max_steps=40, verbose=False, **stepper):
         cfg = node_parameters()
         bridge, plan = cfg['sim_bridge'], cfg['planner']
         adapter, detector = cfg['sela_adapter'], cfg['damage_detector']
@@ -71,15 +72,11 @@ class Mission:
         self.grid = grid_from_description(plan['map.resolution'], plan['map.origin'],
                                           plan['map.width'], plan['map.height'], [])
         self.planner = GridPlanner(self.grid, inflation=plan['planner.inflation'])
-        self.lookahead = plan['planner.lookahead']
-        sela_config = {k: adapter[k] for k in (
-            'gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
-            'planner.horizon', 'priors.max.misfit', 'priors.max.misfit.reproduced')}
-        priors = resolve_priors(adapter['priors'], default_archive_path(), self.archive.params)
+        priors = resolve_priors(adapter['priors.tables'], default_archive_path(),
+                                self.archive.params)
         self.stepper = MissionStepper(
-            make_sela(self.archive, sela_config, priors=priors),
-            StepperConfig(max_steps=max_steps, reset_on_fall=adapter['reset_on_fall'],
-                          on_detection=adapter['adaptation.on_detection']))
+            make_sela(self.archive, adapter_params.sela_config(adapter), priors=priors),
+            replace(adapter_params.stepper_config(adapter), max_steps=max_steps, **stepper))
         self.detector = DamageDetector(DetectorConfig(**{
             k.split('.', 1)[1]: v for k, v in detector.items() if k.startswith('detection.')}))
         self.steps = 0
@@ -151,8 +148,8 @@ def goals(rng, count):
     return [tuple(rng.uniform(-0.4, 2.4, size=2)) for _ in range(count)]
 
 
-def false_restarts(damage, seed, count, verbose=False):
-    mission = Mission(damage, seed, verbose=verbose)
+def false_restarts(damage, seed, count, verbose=False, **stepper):
+    mission = Mission(damage, seed, verbose=verbose, **stepper)
     reached = 0
     try:
         for goal in goals(np.random.default_rng(seed), count):

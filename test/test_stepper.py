@@ -256,7 +256,7 @@ def test_adapt_asked_mid_gait_starts_from_that_gait_and_again_restarts_from_scra
     d.outcome(second)
     assert len(d.stepper.sela.observations[0]) == 2
     reply = only(d(AdaptRequested()), Reply)  # a new damage: restart from the latest
-    assert 'restarted from scratch' in reply.message
+    assert 'adaptation restarted' in reply.message
     assert d.stepper.sela.observations[0].tolist() == [second.index]
     reply = only(d(ClearRequested()), Reply)
     assert 'forgot 1 observation' in reply.message and not d.stepper.logic.adapting

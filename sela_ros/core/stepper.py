@@ -320,7 +320,7 @@ class MissionStepper:
         kept = self.logic.adapt()
         message = (('adaptation started' if not restarting
                     else 'adaptation goes on with what it learned' if kept
-                    else 'adaptation restarted from scratch')
+                    else 'adaptation restarted, what was learned before set aside')
                    + f' ({len(self.sela.observations[0])} observation(s))')
         return message, [Report(Level.WARN, message), self._save()]
 

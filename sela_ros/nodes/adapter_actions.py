@@ -90,7 +90,7 @@ class MissionActions:
             mission = self._mission_of(handle)
             if mission is not None and stepper is not None and stepper.running() \
                     and stepper.mission_id == mission:
-                self.node._feed(io.CancelRequested('canceled by its action client'))
+                self.node.feed(io.CancelRequested('canceled by its action client'))
 
     def _mission_of(self, handle):
         return next((m for m, b in self.bindings.items() if b.handle is handle), None)
@@ -105,7 +105,7 @@ class MissionActions:
         if problem is not None:
             index, code, why = problem
             message = (f'goal ({goals[index][0]:.2f}, {goals[index][1]:.2f}) refused: {why}')
-            self.node._report(io.Level.ERROR, message)
+            self.node.report(io.Level.ERROR, message)
             return self._finish(handle, action, False, code, message,
                                 self._missed(poses, first, index, code))
         binding = Binding(handle, action, goals, poses, first, self.node.now())
@@ -114,7 +114,7 @@ class MissionActions:
         self.node.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
         event = (io.GoalReceived(goals[0]) if action is ifc.NAVIGATE_TO_POSE
                  else io.GoalsReceived(tuple(goals)))
-        self.node._feed(event)
+        self.node.feed(event)
         stepper = self.node.stepper
         if stepper.mission_id == before:
             if not (stepper.running() and tuple(stepper.goal) == tuple(goals[0])):
@@ -129,7 +129,7 @@ class MissionActions:
                     'on under it)', stepper.steps))
         self.bindings[stepper.mission_id] = binding
         if handle.is_cancel_requested:  # canceled before its mission started
-            self.node._feed(io.CancelRequested('canceled by its action client'))
+            self.node.feed(io.CancelRequested('canceled by its action client'))
         ended = await binding.ended
         return self._result(binding, ended)
 

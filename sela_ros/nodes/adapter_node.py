@@ -75,7 +75,7 @@ class SelaAdapter(Node):
         self.plan_client = ifc.client(self, ifc.MAKE_PLAN)
         self.reset_client = ifc.client(self, ifc.RESET)
         self.sim_check = SimulatorCheck(self, self.values['simulator_node'],
-                                        lambda reason: self._feed(io.HoldChanged(reason)))
+                                        lambda reason: self.feed(io.HoldChanged(reason)))
         ifc.subscription(self, ifc.MAP, self.map_callback)
         ifc.server(self, ifc.ADAPT, lambda q, a: self._ask(
             io.AdaptRequested(), 'no archive loaded: set the archive parameter first', a))
@@ -87,7 +87,7 @@ class SelaAdapter(Node):
         try:
             self._use_archive(self.values['archive'])
         except ArchiveError as exc:
-            self._report(io.Level.ERROR, f'no archive loaded: {exc}')
+            self.report(io.Level.ERROR, f'no archive loaded: {exc}')
         else:
             if self.values['resume']:
                 self._resume()
@@ -107,9 +107,9 @@ class SelaAdapter(Node):
         if isinstance(event, io.GoalReceived):
             refusal = adapter_support.goal_refusal(self.map, event.goal, self.stepper)
             if refusal:
-                self._report(io.Level.ERROR, refusal)
+                self.report(io.Level.ERROR, refusal)
                 return
-        self._feed(event)
+        self.feed(event)
 
     @guard
     def map_callback(self, msg):
@@ -121,7 +121,7 @@ class SelaAdapter(Node):
     @guard_service(what='service')
     def _ask(self, event, refusal, response):
         self._reply = io.Reply(False, refusal)
-        self._feed(event)
+        self.feed(event)
         response.success, response.message = self._reply.success, self._reply.message
         return response
 
@@ -131,7 +131,7 @@ class SelaAdapter(Node):
         if self._deferred_plan is not None and self.plan_client.service_is_ready():
             command, self._deferred_plan = self._deferred_plan, None
             self._request_plan(command)
-        self._feed(io.Tick())
+        self.feed(io.Tick())
         self._repeat_result()
 
     def _repeat_result(self):
@@ -186,7 +186,7 @@ class SelaAdapter(Node):
                                f'{archive.descriptors.shape[1]}-D descriptors, kernel length '
                                f'{self.stepper.sela.config.gp_kernel_sigma:g}')
         for event in adapter_support.carried_over(old):
-            self._feed(event)
+            self.feed(event)
 
     def _resume(self):
         """Take back what the state file holds; an unusable file is set aside with the
@@ -204,7 +204,7 @@ class SelaAdapter(Node):
         state, problem = persistence.resume_state(path, len(self.archive), restore,
                                                   limits=limits)
         if problem:
-            self._report(io.Level.ERROR, problem)
+            self.report(io.Level.ERROR, problem)
             return
         self._dispatch(restored)
         if state is not None:
@@ -218,7 +218,7 @@ class SelaAdapter(Node):
     def now(self):
         return self.wall.now().nanoseconds * 1e-9
 
-    def _feed(self, event):
+    def feed(self, event):
         """Hand ``event`` to the stepper; events raised while dispatching queue behind it."""
         if self.stepper is None:
             return
@@ -248,7 +248,7 @@ class SelaAdapter(Node):
                 self.store.after_saves(c)
                 self._release_saved()
             elif isinstance(c, io.Report):
-                self._report(c.level, c.message)
+                self.report(c.level, c.message)
             elif isinstance(c, io.Reply):
                 self._reply = c
             elif isinstance(c, io.SaveState):  # the fsync'ed write is off the step's path
@@ -262,7 +262,7 @@ class SelaAdapter(Node):
     def _release_saved(self):
         for items, error in self.store.released():
             if error:
-                self._report(io.Level.ERROR, f'{error}: what was learned since the last '
+                self.report(io.Level.ERROR, f'{error}: what was learned since the last '
                              'good save is only in memory')
             for c in items:
                 if isinstance(c, io.SendGait):
@@ -306,11 +306,11 @@ class SelaAdapter(Node):
         """Call ``client``; its answer (None: not available) becomes ``event(answer)``."""
         if not client.service_is_ready():
             self.get_logger().error(f'{client.srv_name} is not available')
-            self._feed(event(None))
+            self.feed(event(None))
             return
-        client.call_async(request).add_done_callback(lambda f: self._feed(event(f.result())))
+        client.call_async(request).add_done_callback(lambda f: self.feed(event(f.result())))
 
-    def _report(self, level, message):
+    def report(self, level, message):
         # One call site per severity: rclpy refuses to log one site at two severities.
         if level is io.Level.ERROR:
             self.get_logger().error(message)
