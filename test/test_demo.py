@@ -74,3 +74,13 @@ def test_demo_takes_goals_with_negative_coordinates_as_written():
 
     assert build_parser().parse_args(['--goal', '-1.4,1.2']).goal == [-1.4, 1.2]
     assert build_parser().parse_args(['--goal', '1.6,-1']).goal == [1.6, -1.0]
+
+
+@pytest.mark.dds
+def test_demo_with_a_goal_off_the_map_fails_with_the_reason(tmp_path, ros_env):
+    proc = subprocess.run([str(executable('sela-demo')), '--goal', '40,0', '--out',
+                           str(tmp_path), '--timeout', '120'], env=ros_env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    assert 'off the map' in proc.stderr and 'Traceback' not in proc.stderr
+    assert json.loads((tmp_path / 'summary.json').read_text())['steps'] == 0

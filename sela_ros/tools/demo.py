@@ -230,6 +230,10 @@ def run_client(args, damage, out, procs):
         grid = load_map_file(args.course[0])
     plot_trajectory(out / 'trajectory.png', trajectory, steps, args.goals, damage, grid)
     verdict = 'goal reached' if summary['success'] else 'goal NOT reached'
+    if result is not None and not result.success:
+        print(f'sela-demo: mission failed: {result.message}', file=sys.stderr, flush=True)
+    elif result is None:
+        print('sela-demo: no result from the adapter', file=sys.stderr, flush=True)
     print(f"sela-demo: {verdict} in {summary['steps']} steps "
           f"(adaptation from step {summary['learning_started_at_step']}, "
           f"{summary['detections']} detection(s)), final distance "
