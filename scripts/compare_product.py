@@ -89,7 +89,7 @@ def table(runs):
              '| --- | --- | --- | --- | --- | --- |']
     cells = {}
     for r in runs:
-        cells.setdefault((r['damage'], r['goal']), []).append(r)
+        cells.setdefault((r['damage'], tuple(r['goal'])), []).append(r)
     for (damage, goal), rs in cells.items():
         product, p = _side(rs, 'product')
         runner, q = _side(rs, 'runner')
