@@ -19,7 +19,7 @@ of steps the lower of the two middle ones, so that one surprise in the first two
 not set the right table aside; up to ``max_misfit_reproduced`` for a table that reproduced
 every step the robot made from a standing start, which is what the table ran): a damage nobody
 foresaw is best explained by the nearest table, which can still be wrong about most gaits,
-and then the intact map with SELA's usual learning does better (docs/archive.md, "Damage
+and then the intact map with SELA's usual learning does better (docs/notebook.md, "Damage
 priors"). The GPs keep their observations whatever prior is chosen; only their prior mean
 changes, so switching is free and nothing learnt is lost.
 
@@ -39,7 +39,7 @@ from sela_ros.core.plausibility import ImplausibleOutcome, check_generic_rewards
 
 #: Scale of a table's prediction error for a gait chained from the last one (x, y in metres,
 #: yaw in radians): the measured error of chaining against a standing start is 0.07 m and
-#: 0.19 rad rms (docs/archive.md), rounded up.
+#: 0.19 rad rms (docs/notebook.md), rounded up.
 RESIDUAL_SCALE = np.array([0.1, 0.1, 0.25])
 #: Probability that a gait falls when chained, if the table says it falls from a standing
 #: start, and if the table says it stays up.
@@ -50,14 +50,14 @@ P_FALL_IF_STANDS = 0.05
 OUTLIER_FRACTION = 0.1
 OUTLIER_SCALE = 5.0
 #: Median squared error per step (units of RESIDUAL_SCALE) above which a table is not used
-#: (measured against 0.8, 1.0 and no cap: docs/archive.md).
+#: (measured against 0.8, 1.0 and no cap: docs/notebook.md).
 DEFAULT_MAX_MISFIT = 0.6
 #: A step from a standing start (the first of a run, or after the robot was put back on its
 #: feet) is the experiment the table ran: the right table repeats it up to the position
 #: noise (squared error 0.02 per output). Its error counts as this many times smaller.
 STANDING_PRECISION = 3.0
 #: A table whose squared error per output is under this on every standing-start step seen
-#: has reproduced them; wrong tables rarely do (docs/archive.md).
+#: has reproduced them; wrong tables rarely do (docs/notebook.md).
 REPRODUCED = 0.1
 #: The cap on the misfit of a table that reproduced the standing-start steps: its chained
 #: steps may then be off by more (a gait chained from an odd posture) before it is set aside.
@@ -220,7 +220,7 @@ class DamagePriors:
                               - 0.5 * weighed / wide).sum(axis=1)
         # The lower median: the first step (from a standing start, where the right table is
         # exact) and one chained surprise must not make a mean of 0.02 and 15 (a gait
-        # chained from an odd posture) that sets the right table aside (docs/archive.md).
+        # chained from an odd posture) that sets the right table aside (docs/notebook.md).
         misfit = (np.sort(q, axis=1)[:, (q.shape[1] - 1) // 2] / k if q.shape[1]
                   else np.zeros(len(predicted)))
         p = np.where(falls, P_FALL_IF_FALLS, P_FALL_IF_STANDS)

@@ -27,7 +27,7 @@ map the six duty factors give each gait's *support*, the mean number of feet on 
 with a leg (or two) removed, gaits with little support tip the robot over far more often
 (front left leg removed, 1,000 gaits of the shipped 8-D map from a standing start: 31 % of
 the least supported tenth fall, 1 % of the best supported tenth; front left and rear right
-removed: 83 % and 4 %; ``scripts/fall_analysis.py``, ``docs/archive.md``). Given such a
+removed: 83 % and 4 %; ``scripts/fall_analysis.py``, ``docs/notebook.md``). Given such a
 ``stability`` feature, the risk of an untried gait is a Bayesian logistic model instead of
 one rate for all, ``P(fall) = s(theta - beta z)`` with ``z`` the gait's standardised
 stability: ``theta`` (how badly this robot falls) and ``beta`` (how much support protects
@@ -48,23 +48,23 @@ import numpy as np
 from sela_ros.core.gp import CandidateSetGP
 
 #: Risk accepted by default: gaits predicted to fall more often than this are never tried.
-#: Below it, SELA's ``fall.risk.cost`` weighs the risk against the progress (docs/archive.md).
+#: Below it, SELA's ``fall.risk.cost`` weighs the risk against the progress (docs/notebook.md).
 DEFAULT_THRESHOLD = 0.3
 #: What a fall costs by default in SELA's choice, in metres of predicted progress (measured on
-#: the 8-D map against 0, 0.5 and 2: docs/archive.md).
+#: the 8-D map against 0, 0.5 and 2: docs/notebook.md).
 DEFAULT_COST = 1.0
 #: Steps without a fall assumed before any is seen, in the fall rate of untried gaits without
 #: a stability feature: one fall in the first step gives them 0.25, two in a row 0.4.
 SAFE_PSEUDO_STEPS = 3
 #: Prior of the logistic model over the stability feature: ``theta ~ N(mean, sd)`` (a gait of
 #: average support tips the robot over with probability ``s(-3)`` = 5 % before any evidence:
-#: SELA adapts a robot that is damaged; -4 and -3.5 measured worse, docs/archive.md) and
+#: SELA adapts a robot that is damaged; -4 and -3.5 measured worse, docs/notebook.md) and
 #: ``beta ~ N(mean, sd)``, ``beta >= 0`` (per standard deviation of the feature).
 THETA_PRIOR = (-3.0, 1.5)
 BETA_PRIOR = (1.5, 1.0)
 #: How many gaits a damage prior's table counts for in the logistic model's prior on that
 #: damage (:meth:`FallRisk.table_support`): its falls are from a standing start, not chained
-#: as on the robot, so they set where the model starts, not how sure it is (docs/archive.md).
+#: as on the robot, so they set where the model starts, not how sure it is (docs/notebook.md).
 TABLE_EVIDENCE = 600
 #: What the support model's risk of a gait counts for, in chained runs, against the chained
 #: runs of that gait a damage prior holds (:meth:`FallRisk.risk`, ``chained``).
@@ -216,7 +216,7 @@ class FallRisk:
 
         ``prior_falls``: ``(M,)`` what a damage prior says of each gait (1: it falls from a
         standing start on that damage); where nothing near a gait was observed, its risk is
-        at least that (measured against the table's own rates: docs/archive.md).
+        at least that (measured against the table's own rates: docs/notebook.md).
         ``support``: the logistic model's prior on that damage (:meth:`table_support`).
         ``chained``: ``(gaits, runs, falls)``, gaits that damage prior ran chained after
         others, how often and how often they fell: their untried risk is the support

@@ -310,7 +310,7 @@ class SELA:
         mu_t, var = self._gp.query_columns()
         if selection.mixture is not None:
             # The mixture's falls set the fall model's prior as a table's do; no chained runs:
-            # those of the damages mixed mislead on another robot (docs/archive.md).
+            # those of the damages mixed mislead on another robot (docs/notebook.md).
             mixture = selection.mixture
             rates = mixture.fall_rates(self.priors.fallen)
             mean = mixture.mean(self._prior, self.priors.generic_reward)
@@ -393,7 +393,7 @@ class SELA:
         higher, weighed and capped as in every step; one step ahead.
 
         Nothing tells the damages apart before the robot has moved, so the step the intact
-        map alone picks is often one the damaged robots cannot do (measured: docs/archive.md,
+        map alone picks is often one the damaged robots cannot do (measured: docs/notebook.md,
         "The first step and the fall model on a known damage")."""
         c = self.config
         k = self.motion.gr_dim

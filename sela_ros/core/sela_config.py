@@ -34,7 +34,7 @@ class SELAConfig:
     # Risk of falling accepted (fall-aware acquisition); 1 or more: falls are not avoided.
     fall_risk_threshold: float = fall_risk.DEFAULT_THRESHOLD
     # Kernel length of the fall GP (normalised descriptors); 0: gp.kernel.sigma. Falls are
-    # more local than displacements on the 8-D map (docs/archive.md), so maps set their own.
+    # more local than displacements on the 8-D map (docs/notebook.md), so maps set their own.
     fall_kernel_sigma: float = 0.0
     # What a fall costs, in metres of the specialised reward: UCB takes cost x risk off each
     # gait's score (0: only the threshold keeps falls away).
