@@ -21,6 +21,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
+from action_msgs.msg import GoalStatus
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
@@ -211,9 +212,10 @@ class MissionClient:
             self._read(status, again=True)
         self.spin_until(lambda: self._mission is not None or self.action_result is not None,
                         timeout, f'the adapter to take the {action.name} goal')
-        if self._mission is None:  # ended before it started: refused
+        if self._mission is None:  # ended before its statuses came: refused, or done at once
             r = self.action_result.result
-            self.result = MissionResult(False, 0, 0, r.error_msg, {'error_code': r.error_code})
+            done = self.action_result.status == GoalStatus.STATUS_SUCCEEDED
+            self.result = MissionResult(done, 0, 0, r.error_msg, {'error_code': r.error_code})
 
     def _action_done(self, future):
         self.action_result = future.result()
