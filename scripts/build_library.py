@@ -188,6 +188,25 @@ def infer(descriptors, base, gaits, gr, fallen, sigma, noise_ratio=0.1, rows=200
     return out_gr, out_fallen
 
 
+def check_inference(archive, shipped, gaits):
+    """How well the gaits a build does not evaluate are inferred: each whole shipped table
+    inferred from its own gaits of the plan, the error on the others printed against the
+    intact map's (rms of dx, dy in m and dyaw in rad; fall flags right)."""
+    subset = archive_subset(archive, gaits)
+    rest = np.setdiff1d(np.arange(len(archive)), subset)
+    descriptors = archive.normalised_descriptors()
+    for i, name in enumerate(shipped.names):
+        truth, falls = shipped.generic_reward[i], shipped.fallen[i]
+        gr, fallen = infer(descriptors, archive.generic_reward, subset, truth[subset],
+                           falls[subset], archive.kernel_sigma)
+        inferred = np.sqrt(np.mean((gr[rest] - truth[rest]) ** 2, axis=0))
+        intact = np.sqrt(np.mean((archive.generic_reward[rest] - truth[rest]) ** 2, axis=0))
+        print(f'{name}: {len(rest)} gaits inferred from {len(subset)}: rms error '
+              f'{np.array2string(inferred, precision=3)} (intact map '
+              f'{np.array2string(intact, precision=3)}), falls right '
+              f'{np.mean(fallen[rest] == falls[rest]):.1%}', flush=True)
+
+
 def _evaluated(out, spec):
     """``(gaits, generic rewards, fallen)`` of every chunk of ``spec`` on disk."""
     data = [np.load(p) for p in sorted((Path(out) / _slug(spec)).glob('*.npz'))]
@@ -268,6 +287,9 @@ def main(argv=None):
     parser.add_argument('--assemble', action='store_true',
                         help='infer the gaits not evaluated and write --library')
     parser.add_argument('--library', default=None, help='the assembled damage-priors file')
+    parser.add_argument('--check-inference', action='store_true',
+                        help='infer the shipped tables from the gaits of the plan and print '
+                             'the error on the others')
     parser.add_argument('--partial', action='store_true',
                         help='assemble what is evaluated so far (conditions listed)')
     args = parser.parse_args(argv)
@@ -288,6 +310,11 @@ def main(argv=None):
     if hours > BUDGET_CORE_HOURS and args.only is None:
         print(f'warning: over the {BUDGET_CORE_HOURS:g} core-hour budget', file=sys.stderr)
     only = set(args.only.split(';')) if args.only else None
+    if args.check_inference:
+        if shipped is None:
+            parser.error(f'no damage priors beside {path} to check against')
+        check_inference(archive, shipped, args.gaits)
+        return
     if args.assemble:
         if not args.library:
             parser.error('--assemble needs --library')
