@@ -255,3 +255,14 @@ def test_the_posterior_mean_of_one_gait_under_another_prior():
     for j in (0, 40, 300):
         np.testing.assert_allclose(gp.mean_at_with_prior(j, rows, other[j]), full[:, j],
                                    atol=1e-12)
+
+
+def test_the_mixed_falls_are_a_noisy_or_of_the_tables_weighed_by_their_weights():
+    rng = np.random.default_rng(4)
+    fallen = rng.random((5, 200)) < 0.3
+    for weights in ([0.0, 0.3, 1.0, 2.5, 0.7], [0.2, 0.0, 0.0, 0.5, 0.1], [0.0] * 5):
+        mixture = Mixture(np.array(weights), np.eye(5), 0.0, 0)
+        stand = np.ones(200)
+        for c, f in zip(np.clip(weights, 0, 1), fallen):
+            stand[f] *= 1.0 - c
+        np.testing.assert_allclose(mixture.fall_rates(fallen), 1.0 - stand, atol=1e-12)

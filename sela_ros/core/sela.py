@@ -175,6 +175,7 @@ class SELA:
         # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
         # the mixture of the tables.
         self._prior_scores = {'table': 0.0, 'mixture': 0.0}
+        self._mixture_fit = None
 
     def set_aside(self, reason, keep_from=None) -> int:
         """Start learning afresh without losing what was learned: the observations before
@@ -270,9 +271,16 @@ class SELA:
         return damage_priors.Selection(None, MIXTURE, mixture.misfit, mixture=mixture)
 
     def _mixture(self, idx, grs, fall_idx, fallen):
-        return prior_mixture.fit_mixture(self._prior, self.priors.generic_reward, idx, grs,
-                                         fall_idx, fallen, self._standing,
-                                         weight_sd=self.config.priors_weights_sd)
+        # The same steps are fitted twice, when a step is scored before it is learnt and
+        # when the next gait is chosen: the fit is kept for the steps it was made on.
+        key = (np.asarray(idx).tobytes(), np.asarray(grs).tobytes(),
+               np.asarray(fall_idx).tobytes(), np.asarray(fallen).tobytes(),
+               tuple(self._standing), self.config.priors_weights_sd, id(self.priors))
+        if self._mixture_fit is None or self._mixture_fit[0] != key:
+            self._mixture_fit = (key, prior_mixture.fit_mixture(
+                self._prior, self.priors.generic_reward, idx, grs, fall_idx, fallen,
+                self._standing, weight_sd=self.config.priors_weights_sd))
+        return self._mixture_fit[1]
 
     def _score_priors(self, index, observed, standing) -> None:
         """Score the one-table choice and the mixture on a step about to be learnt: the
