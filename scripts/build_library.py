@@ -2,17 +2,17 @@
 """Build a library of damage priors that spans the damage space, resumably, in bounded time.
 
 The shipped damage priors (``make priors``) are six single-leg removals, every gait of the
-map each. This library covers the kinds a robot meets (legs removed, alone and in pairs; legs
-shortened at several lengths; joints blocked at several angles), each condition evaluated on
-a subset of the map's gaits: 2,000 chosen to cover its behaviour space (farthest-point
-sampling over the normalised descriptors), then the gaits that take the intact robot
-farthest, which are the ones SELA picks most (a mission wants long steps toward its
-waypoint: docs/priors_combination.md); the other gaits inferred by a GP over the same
-descriptors (prior mean: the intact map; what is learnt: each condition's deviation from it,
-and its falls). The single legs removed are not built: their whole tables ship beside the
-map (``make priors``) and the library takes them from there. The result is a damage-priors
-file (``DamagePriors``) that SELA mixes (``sela_ros.core.prior_mixture``) or chooses from,
-as ``priors.tables: <path>``.
+map each. This library covers the kinds a robot meets (legs removed, alone and in pairs;
+legs shortened at several lengths; joints blocked at several angles; motors gone limp), each
+condition evaluated on a subset of the map's gaits: 2,000 chosen to cover its behaviour
+space (farthest-point sampling over the normalised descriptors), then the gaits that take
+the intact robot farthest, which are the ones SELA picks most (a mission wants long steps
+toward its waypoint: docs/priors_combination.md); the other gaits inferred by a GP over the
+same descriptors (prior mean: the intact map; what is learnt: each condition's deviation
+from it, and its falls). The single legs removed are not built: their whole tables ship
+beside the map (``make priors``) and the library takes them from there. The result is a
+damage-priors file (``DamagePriors``) that SELA mixes (``sela_ros.core.prior_mixture``) or
+chooses from, as ``priors.tables: <path>``.
 
     .venv/bin/python scripts/build_library.py --plan              # conditions, cost, size
     nice -n 15 .venv/bin/python scripts/build_library.py --workers 2
@@ -44,6 +44,9 @@ LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right',
 SHORTEN_FACTORS = (0.3, 0.6, 0.8)
 BLOCKED = (('knee', -0.4), ('knee', 0.0), ('knee', 0.4), ('hip_pitch', -0.3),
            ('hip_pitch', 0.3))
+#: Motors weakened: the hip pitch limp (the motors have torque to spare: at 0.3 of it the
+#: fastest gaits move as on the intact robot; docs/hexapod.md).
+WEAKENED = (('hip_pitch', 0.0),)
 #: One gait from a standing start on one core, seconds: 0.04 measured by this build on a
 #: loaded 2-core machine (100-gait chunks in 4-7 s); the plan counts 0.05.
 SECONDS_PER_GAIT = 0.05
@@ -60,6 +63,7 @@ def conditions():
     out = [f'remove:{leg}' for leg in LEGS]
     out += [f'shorten:{leg}:{f}' for leg in LEGS for f in SHORTEN_FACTORS]
     out += [f'block:{leg}.{joint}={a}' for leg in LEGS for joint, a in BLOCKED]
+    out += [f'weaken:{leg}.{joint}={s}' for leg in LEGS for joint, s in WEAKENED]
     out += [f'remove:{a},remove:{b}' for a, b in itertools.combinations(LEGS, 2)]
     # Two legs shortened on one side or across, at the middle length.
     out += [f'shorten:{a}:0.6,shorten:{b}:0.6' for a, b in itertools.combinations(LEGS, 2)]
@@ -303,7 +307,7 @@ def main(argv=None):
           f'evaluations, about {hours:.1f} core-hours at {SECONDS_PER_GAIT} s per gait '
           f'(budget {BUDGET_CORE_HOURS:g}), about {megabytes:.1f} MB assembled')
     if args.plan:
-        for kind in ('remove', 'shorten', 'block'):
+        for kind in ('remove', 'shorten', 'block', 'weaken'):
             picked = [n for n in names if n.startswith(kind)]
             print(f'  {kind}: {len(picked)} ({", ".join(picked[:3])}, ...)')
         return
