@@ -51,7 +51,7 @@ def test_the_table_that_explains_the_steps_is_chosen_and_a_poor_fit_is_not():
     # the nearest table still explains them badly and the intact map is kept.
     far = intact[idx] * [-2.0, 2.0, 1.0]
     assert priors.select(intact, idx, far).name == 'intact'
-    assert priors.select(intact, idx, seen, max_misfit=0.0).name == 'intact'
+    assert priors.select(intact, idx, seen, max_misfit=None).name == 'intact'
 
 
 def test_one_surprise_in_the_first_two_steps_does_not_set_the_right_table_aside():
@@ -84,7 +84,7 @@ def test_a_table_that_reproduced_the_standing_start_is_kept_through_chained_surp
     assert kept.name == 'remove:front_left' and 1.0 < kept.misfit < 2.0 and kept.reproduced
     assert priors.select(intact, idx, seen, standing=standing,
                          max_misfit_reproduced=1.0).name == 'intact'
-    assert priors.select(intact, idx, seen, max_misfit=0.0, standing=standing).name == 'intact'
+    assert priors.select(intact, idx, seen, max_misfit=None, standing=standing).name == 'intact'
     # Off by 5 cm from a standing start: not reproduced, no exception.
     missed = seen + [[0.05, 0.05, 0.0], [0, 0, 0], [0, 0, 0]]
     assert priors.select(intact, idx, missed, standing=standing).name == 'intact'

@@ -122,6 +122,35 @@ def test_check_runs_the_extra_rule_and_allows_not_set_only_without_default():
         'an integer in [0, 2147483647]')
 
 
+@given(anything)
+def test_a_parameter_with_a_word_takes_the_word_or_its_kind_of_value_and_nothing_else(value):
+    spec = Spec('gp.kernel.sigma', 'auto', '', low=0.0, high=100.0, kind='double', word='auto')
+    number = (isinstance(value, (int, float)) and not isinstance(value, bool)
+              and math.isfinite(value) and 0 <= value <= 100)
+    assert (check(spec, value) is None) == (number or value == 'auto')
+    if isinstance(value, str) and value != 'auto':
+        assert check(spec, value) == f'must be a number in [0, 100] or auto, got {value!r}'
+
+
+def test_the_0_that_meant_a_word_is_read_as_the_word_and_nothing_else_is():
+    from sela_ros.nodes.params import word_warning, zero_for_word
+
+    rate = Spec('publish_max_rate', 5.0, '', low=0.0, high=1000.0, unit=' Hz', word='none')
+    horizon = Spec('planner.horizon', 'auto', '', low=1, high=2, kind='integer', word='auto')
+    assert rate.constraints() == 'a number in [0, 1000] Hz or none'
+    assert horizon.constraints() == 'an integer in [1, 2] or auto'
+    for spec, word in ((rate, 'none'), (horizon, 'auto')):
+        for zero in (0, 0.0):
+            assert zero_for_word(spec, zero) and coerce(spec, zero) == word
+            assert check(spec, coerce(spec, zero)) is None
+        assert not zero_for_word(spec, False) and coerce(spec, word) == word
+        assert f'give {word} instead' in word_warning(spec)
+    assert coerce(rate, 3) == 3.0 and coerce(horizon, 2) == 2
+    assert check(horizon, 3) == 'must be an integer in [1, 2] or auto, got 3'
+    assert check(horizon, 'none') == "must be an integer in [1, 2] or auto, got 'none'"
+    assert coerce(Spec('x', 0.5, '', low=0.0), 0) == 0.0  # no word: 0 is a number
+
+
 @given(st.floats(allow_nan=True), st.integers(-3, 3), st.integers(-3, 3),
        st.floats(allow_nan=True))
 def test_detector_config_validation(threshold, window, cooldown, max_sigma):

@@ -181,7 +181,7 @@ class DamagePriors:
             fall_indices, fallen: every step's gait and whether it fell.
             max_misfit: a table whose median squared error (units of RESIDUAL_SCALE) over the
                 steps is above this is not used (of an even number of steps, the lower of the
-                two middle errors).
+                two middle errors); None: no table is.
             standing: ``(N,)`` which of the learnt steps started from a standing start (empty:
                 none). Their errors weigh :data:`STANDING_PRECISION` times more, and a table
                 that reproduced all of them (:data:`REPRODUCED`) is used up to
@@ -227,9 +227,9 @@ class DamagePriors:
         loglik += np.sum(np.where(fallen, np.log(p), np.log1p(-p)), axis=1)
         best = int(np.argmax(loglik))
         reproduced = bool(best and standing.any() and np.all(q[best, standing] / k < REPRODUCED))
-        if max_misfit > 0 and reproduced:
+        if max_misfit is not None and reproduced:
             max_misfit = max(max_misfit, max_misfit_reproduced)
-        if best == 0 or misfit[best] > max_misfit:
+        if best == 0 or max_misfit is None or misfit[best] > max_misfit:
             return Selection(None, 'intact', float(misfit[0]))
         return Selection(best - 1, self.names[best - 1], float(misfit[best]), reproduced)
 
