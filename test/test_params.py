@@ -1,4 +1,4 @@
-"""Property-based tests of the parameter validators used by every node's set-callback."""
+"""Property-based tests of the parameter check used by every node's set-callback."""
 import math
 import sys
 
@@ -6,62 +6,12 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from sela_ros.core.damage_detection import DetectorConfig
-from sela_ros.nodes.params import (
-    STARTUP_ONLY,
-    Spec,
-    check,
-    coerce,
-    first_problem,
-    non_negative_int,
-    non_negative_number,
-    positive_int,
-    positive_number,
-    startup_only,
-    string,
-)
+from sela_ros.nodes.params import Spec, check, coerce
 from sim_bridge.damage import LEG_NAMES
 from sim_bridge.node import PARAMETERS, damage_rule
 
 anything = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(),
                      st.lists(st.integers(), max_size=3))
-
-
-@given(anything)
-def test_positive_number_accepts_exactly_finite_positive_numbers(value):
-    ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
-          and math.isfinite(value) and value > 0)
-    assert (positive_number(' (m)')(value) is None) == ok
-
-
-@given(anything)
-def test_non_negative_number(value):
-    ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
-          and math.isfinite(value) and value >= 0)
-    assert (non_negative_number()(value) is None) == ok
-
-
-@given(anything)
-def test_integer_rules(value):
-    is_int = isinstance(value, int) and not isinstance(value, bool)
-    assert (positive_int(value) is None) == (is_int and value > 0)
-    assert (non_negative_int(value) is None) == (is_int and value >= 0)
-
-
-@given(anything)
-def test_string_and_startup_only(value):
-    assert (string(value) is None) == isinstance(value, str)
-    assert startup_only(value) == STARTUP_ONLY
-
-
-@given(st.lists(st.tuples(st.sampled_from(['a', 'b', 'c']), anything), max_size=6))
-def test_first_problem_names_the_first_refused_parameter(changes):
-    rules = {'a': positive_int, 'b': string}
-    problem = first_problem(changes, rules)
-    refused = [n for n, v in changes if n in rules and rules[n](v)]
-    if refused:
-        assert problem.startswith(refused[0] + ' ')
-    else:
-        assert problem is None
 
 
 @given(st.sampled_from(LEG_NAMES), st.text(max_size=12))

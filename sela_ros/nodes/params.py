@@ -28,47 +28,9 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 
-STARTUP_ONLY = 'can only be set at start-up (restart the node with the new value)'
-
 
 def _is_number(value):
     return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def positive_number(unit=''):
-    def rule(value):
-        if not (_is_number(value) and math.isfinite(value) and value > 0):
-            return f'must be a finite number > 0{unit}, got {value!r}'
-        return None
-    return rule
-
-
-def non_negative_number(unit=''):
-    def rule(value):
-        if not (_is_number(value) and math.isfinite(value) and value >= 0):
-            return f'must be a finite number >= 0{unit}, got {value!r}'
-        return None
-    return rule
-
-
-def positive_int(value):
-    if not (isinstance(value, int) and not isinstance(value, bool) and value > 0):
-        return f'must be an integer > 0, got {value!r}'
-    return None
-
-
-def non_negative_int(value):
-    if not (isinstance(value, int) and not isinstance(value, bool) and value >= 0):
-        return f'must be an integer >= 0, got {value!r}'
-    return None
-
-
-def string(value):
-    return None if isinstance(value, str) else f'must be a string, got {value!r}'
-
-
-def startup_only(value):
-    return STARTUP_ONLY
 
 
 class StartupParameterError(Exception):
@@ -323,22 +285,6 @@ def take_renamed(overrides, specs, warn):
         overrides[spec.name] = type(param)(spec.name, value=param.value)
         warn(f'parameter {old} is now {spec.name}: read as {spec.name} = {param.value!r}; '
              'rename it in the parameter file (the old name will stop working)')
-
-
-def first_problem(changes, rules):
-    """Return ``'<name> <problem>'`` for the first change a rule refuses, else None.
-
-    Args:
-        changes: iterable of ``(name, value)``.
-        rules: ``{name: rule}``; a rule returns None or what is wrong. Names without a rule
-            are accepted (ROS itself checks their declared types).
-    """
-    for name, value in changes:
-        rule = rules.get(name)
-        problem = rule(value) if rule is not None else None
-        if problem:
-            return f'{name} {problem}'
-    return None
 
 
 def params_file_problems(args):

@@ -43,7 +43,6 @@ from sela_ros.qd.map_elites import MapElites, default_run
 
 DEFAULT_GRID = (64, 64)
 DEFAULT_BOUNDS = (-0.6, 0.6, -0.6, 0.6)
-DESCRIPTOR_NAME = 'final_xy'
 FITNESS_NAME = 'arc_yaw_error'
 #: --descriptor choices: the 2-D grid map and the paper's 8-D CVT map.
 DESCRIPTOR_NAMES = {'2d': 'final_xy', '8d': 'final_xy_duty_factors'}
