@@ -197,6 +197,22 @@ def test_sela_refuses_tables_for_another_archive():
         SELA(candidates[:10], intact[:10], SE2Motion(), priors=priors)
 
 
+def test_a_save_that_fails_leaves_the_file_it_would_replace_whole(tmp_path, monkeypatch):
+    _, _, priors, params = world()
+    path = tmp_path / 'map_priors.npz'
+    priors.save(path)
+    before = path.read_bytes()
+
+    def interrupted(handle, **arrays):
+        handle.write(b'half a file')
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, 'savez_compressed', interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        priors.without('remove:front_left').save(path)
+    assert path.read_bytes() == before and sorted(tmp_path.iterdir()) == [path]
+
+
 def test_files_round_trip_and_bad_files_are_named(tmp_path):
     _, _, priors, params = world()
     archive = tmp_path / 'map.npz'

@@ -28,13 +28,13 @@ ROS-free, and no simulator: ``make priors`` (``scripts/build_priors.py``) builds
 from __future__ import annotations
 
 import hashlib
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from sela_ros.core.npz_files import NpzTooLarge, check_npz_size
+from sela_ros.core.persistence import atomic_write
 from sela_ros.core.plausibility import ImplausibleOutcome, check_generic_rewards
 
 #: Scale of a table's prediction error for a gait chained from the last one (x, y in metres,
@@ -235,18 +235,14 @@ class DamagePriors:
 
     def save(self, path) -> None:
         """Write the tables (``.npz``; atomic: a reader never sees half a file)."""
-        path = Path(path)
-        tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
         chained = {} if self.chained_runs is None else {
             'chained_runs': np.asarray(self.chained_runs).astype(np.uint16),
             'chained_falls': np.asarray(self.chained_falls).astype(np.uint16)}
-        with open(tmp, 'wb') as handle:
-            np.savez_compressed(handle, names=np.array(self.names),
-                                generic_reward=self.generic_reward.astype(np.float32),
-                                fallen=self.fallen.astype(bool),
-                                archive_checksum=np.array(self.archive_checksum),
-                                format_version=np.array(FORMAT_VERSION), **chained)
-        os.replace(tmp, path)
+        atomic_write(path, lambda handle: np.savez_compressed(
+            handle, names=np.array(self.names),
+            generic_reward=self.generic_reward.astype(np.float32),
+            fallen=self.fallen.astype(bool), archive_checksum=np.array(self.archive_checksum),
+            format_version=np.array(FORMAT_VERSION), **chained))
 
 
 def load_damage_priors(path, params=None) -> DamagePriors:
