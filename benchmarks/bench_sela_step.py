@@ -88,8 +88,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None)
         priors = library_like(shipped, priors, seed)
     else:
         priors = resolve_priors(priors, default_archive_path(), archive.params)
-    # One table chosen (priors.weights.sd 0), or the tables mixed (the default).
-    sela = make_sela(archive, None if mixed else {'priors.weights.sd': 0.0}, priors=priors)
+    # One table chosen (priors.weights.sd none), or the tables mixed (the default).
+    sela = make_sela(archive, None if mixed else {'priors.weights.sd': 'none'}, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
     pose = np.zeros(3)

@@ -5,7 +5,7 @@ Every run is :func:`sela_ros.core.mission.run_mission`, the in-process driver of
 start, position observations with noise, the damage detector, the straight-line reward
 selection layer, a fallen robot righted where it lies. Methods:
 
-* ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` 0);
+* ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` none);
 * ``mixture``: the tables mixed by weights fitted to the steps (``priors.weights.sd`` 1);
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
@@ -50,8 +50,8 @@ UNFORESEEN = tuple((f'remove:{leg}/own-left-out', f'remove:{leg}', True)
 FORESEEN = tuple((f'remove:{leg}', f'remove:{leg}', False)
                  for leg in ('middle_right', 'front_left', 'rear_right'))
 GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
-METHODS = {'select': {'priors.weights.sd': 0.0}, 'mixture': {'priors.weights.sd': 1.0},
-           'none': None, 'library-select': {'priors.weights.sd': 0.0},
+METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.sd': 1.0},
+           'none': None, 'library-select': {'priors.weights.sd': 'none'},
            'library': {'priors.weights.sd': 1.0}}
 #: Methods that take their tables from ``--library``, each damage with its own condition and
 #: its near duplicates left out (:func:`leave_out`).

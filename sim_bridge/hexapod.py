@@ -289,10 +289,6 @@ class Hexapod:
         """Full base position (x, y, z) and quaternion (x, y, z, w)."""
         return p.getBasePositionAndOrientation(self._robot, physicsClientId=self._client)
 
-    def base_velocity(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """Base linear and angular velocity in the world frame."""
-        return p.getBaseVelocity(self._robot, physicsClientId=self._client)
-
     def joint_states(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities in :attr:`joint_names` order."""
         states = p.getJointStates(self._robot, self._active_joints,

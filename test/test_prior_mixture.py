@@ -155,7 +155,7 @@ def test_sela_uses_the_mixture_on_a_damage_no_table_holds():
     far = np.setdiff1d(np.arange(M), (3, 50, 97, 150))
     mixture_error = np.abs(mu[far] - truth[far]).mean()
     # The one-table choice is worse away from the gaits tried.
-    one = sela_over(priors, candidates, intact, priors_weights_sd=0.0)
+    one = sela_over(priors, candidates, intact, priors_weights_sd=None)
     for i in (3, 50, 97, 150):
         one.tell(i, truth[i], standing_start=i == 3)
     assert one.select_prior().mixture is None
@@ -233,7 +233,7 @@ def test_the_mixture_is_used_only_while_it_predicts_the_steps_better():
     assert again.state_dict()['prior_scores'] == scores
     assert again.select_prior().name == MIXTURE
     # Without a mixture (priors.weights.sd 0) nothing is scored.
-    off = sela_over(priors, candidates, intact, priors_weights_sd=0.0)
+    off = sela_over(priors, candidates, intact, priors_weights_sd=None)
     for i in steps:
         off.tell(i, truth[i], standing_start=i == 3)
     assert off.state_dict()['prior_scores'] == {'table': 0.0, 'mixture': 0.0}
