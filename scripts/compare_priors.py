@@ -59,7 +59,7 @@ LIBRARY_METHODS = ('library-select', 'library')
 #: Two conditions are near duplicates when their tables differ by less than this, rms over
 #: the gaits that stand in both, in units of the chaining error (RESIDUAL_SCALE).
 NEAR_DUPLICATE = 1.0
-CAMPAIGNS = ('campaign_priors', 'campaign_unforeseen')
+CAMPAIGNS = ('campaign_priors', 'campaign_unforeseen', 'campaign_oracle_one_side')
 
 
 def oracle_medians():
