@@ -267,7 +267,11 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
     if short:
         print(f'  inferred from fewer than {planned} gaits: {", ".join(short)}')
     if missing:
-        print(f'  left out, nothing evaluated: {", ".join(missing)}')
+        kinds = {}
+        for spec in missing:
+            kinds[spec.split(':')[0]] = kinds.get(spec.split(':')[0], 0) + 1
+        print(f'  left out, nothing evaluated: {len(missing)} conditions ('
+              + ', '.join(f'{n} {kind}' for kind, n in kinds.items()) + ')')
 
 
 def main(argv=None):

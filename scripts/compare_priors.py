@@ -1,9 +1,10 @@
 """Mixing the damage priors against choosing one, through the product's decision loop.
 
-Every run is :func:`sela_ros.core.mission.run_mission`, the in-process driver of the
-``MissionStepper`` that the ``sela_adapter`` node runs: the PyBullet hexapod damaged from the
-start, position observations with noise, the damage detector, the straight-line reward
-selection layer, a fallen robot righted where it lies. Methods:
+Every run is one replicate of the experiment runner (``sela-experiment hexapod``: its SELA
+drives the ``MissionStepper`` that the ``sela_adapter`` node runs, with the damage detector,
+the planner node's default map and the node's defaults): the PyBullet hexapod damaged from
+the start, position observations with noise seeded as the ``sim_bridge`` node's ``seed``, a
+fallen robot righted where it lies. Methods:
 
 * ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` none);
 * ``mixture``: the tables mixed by weights fitted to the steps (``priors.weights.sd`` 1);
@@ -28,7 +29,7 @@ import json
 import os
 import statistics
 import sys
-import time
+import tempfile
 from pathlib import Path
 
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
@@ -103,36 +104,32 @@ def leave_out(priors, damage):
 
 
 def run_one(archive, priors_all, case, goal, method, seed, args, library=None):
-    from sela_ros.core.damage_detection import DetectorConfig
-    from sela_ros.core.mission import run_mission
-    from sela_ros.core.planning import straight_line_planner
-    from sim_bridge.environment import ObservedHexapod
-    from sim_bridge.hexapod import Hexapod
+    """One mission through the experiment runner (``sela-experiment hexapod``'s SELA
+    replicate: the node's stepper, detector, planner and defaults), the observation noise
+    seeded as the ``sim_bridge`` node's ``seed``; the method sets the damage priors and
+    ``priors.weights.sd``."""
+    from sela_ros.core.archive_paths import default_archive_path
+    from sela_ros.experiments.hexapod import Job, run_method
 
-    label, damage, leave_out = case
-    priors, left_out = None, []
+    label, damage, leave_out_own = case
+    left_out, priors_value = [], 'auto'
     if method in LIBRARY_METHODS:
-        priors, left_out = library[damage]
-    elif METHODS[method] is not None:
-        priors = priors_all.without(damage) if leave_out else priors_all
-    settings = archive.simulator_settings
-    robot = Hexapod(dt=settings['dt'], gait_duration=settings['gait_duration'],
-                    solver_iterations=settings['solver_iterations'], damage=damage)
-    env = ObservedHexapod(robot, args.noise_std, seed=seed)
-    start = time.perf_counter()
-    try:
-        success, logic = run_mission(env, archive, goal, straight_line_planner,
-                                     lookahead=args.lookahead,
-                                     sela_config=METHODS[method] or {},
-                                     detector_config=DetectorConfig(),
-                                     max_steps=args.max_steps, adapt_on_start=True,
-                                     on_detection='evidence', priors=priors)
-    finally:
-        robot.close()
-    return {'case': label, 'damage': damage, 'foreseen': not leave_out and priors is not None
-            and damage in priors_all.names, 'goal': list(goal), 'method': method,
-            'seed': seed, 'success': bool(success), 'steps': len(logic.records),
-            'falls': int(env.falls), 'wall_seconds': round(time.perf_counter() - start, 2),
+        priors_value, left_out = library[damage]
+        leave_out_own = False  # the library's file for this damage has it left out
+    elif METHODS[method] is None:
+        priors_value, leave_out_own = 'none', False
+    settings = METHODS[method] or {}
+    extra = {} if args.lookahead is None else {'lookahead': args.lookahead}
+    job = Job('sela', np.random.SeedSequence(seed), str(default_archive_path()), damage,
+              tuple(goal), noise_std=args.noise_std, max_steps=args.max_steps,
+              priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
+              weights_sd=settings.get('priors.weights.sd'), **extra)
+    out = run_method(job)
+    foreseen = priors_value == 'auto' and not leave_out_own and damage in priors_all.names
+    return {'case': label, 'damage': damage, 'foreseen': foreseen, 'goal': list(goal),
+            'method': method, 'seed': seed, 'success': out['success'], 'steps': out['steps'],
+            'falls': out['falls'], 'wall_seconds': round(out['wall_seconds'], 2),
+            'behaviors': out['behaviors'],
             **({'left_out': left_out} if method in LIBRARY_METHODS else {})}
 
 
@@ -257,7 +254,8 @@ def main(argv=None):
     parser.add_argument('--max-steps', type=int, default=60)
     parser.add_argument('--noise-std', type=float, default=0.01,
                         help="observation noise (m; the campaigns' 0.01)")
-    parser.add_argument('--lookahead', type=float, default=0.6)
+    parser.add_argument('--lookahead', type=float, default=None,
+                        help="waypoint distance (m; default: the node's)")
     parser.add_argument('--out', default=None, help='JSON lines of every run (resumed)')
     parser.add_argument('--markdown', default=None, help='write the tables here')
     parser.add_argument('--library', default=None,
@@ -299,14 +297,16 @@ def main(argv=None):
             if not args.library:
                 parser.error(f'the methods {LIBRARY_METHODS} need --library')
             whole = resolve_priors(args.library, default_archive_path(), archive.params)
-            for case in cases:
+            scratch = tempfile.mkdtemp(prefix='sela_library_')
+            for n, case in enumerate(cases):
                 # A foreseen damage keeps its table; every other one is measured as if no
                 # condition of the library were it or near it.
-                library[case[1]] = leave_out(whole, case[1]) if case in UNFORESEEN \
-                    else (whole, [])
-                print(f'{case[0]}: {len(whole) - len(library[case[1]][0])} of {len(whole)} '
-                      f'library tables left out ({", ".join(library[case[1]][1]) or "none"})',
-                      flush=True)
+                kept, names = leave_out(whole, case[1]) if case in UNFORESEEN else (whole, [])
+                path = os.path.join(scratch, f'{n}.npz')
+                kept.save(path)
+                library[case[1]] = (path, names)
+                print(f'{case[0]}: {len(names)} of {len(whole)} library tables left out '
+                      f'({", ".join(names) or "none"})', flush=True)
         if args.out:
             Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         # Seed by seed: an interrupted comparison has every cell at the same count.

@@ -178,23 +178,24 @@ RECORDED_SELA_PARAMETERS = ('gp.kernel.sigma', 'acquisition.ucb.alpha', 'fall.ri
 
 
 def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=None,
-                fall_kernel_sigma=None, fall_cost=None, horizon=None) -> SELAConfig:
+                fall_kernel_sigma=None, fall_cost=None, horizon=None,
+                weights_sd=None) -> SELAConfig:
     """The SELA parameters of a run: those given, the archive's own for the rest."""
     from sela_ros.core.learning import archive_config
 
     given = {'planner.lookahead': lookahead, 'fall.risk.threshold': fall_risk or None,
              'gp.kernel.sigma': kernel_sigma, 'fall.kernel.sigma': fall_kernel_sigma,
              'fall.risk.cost': fall_cost, 'acquisition.ucb.alpha': alpha,
-             'planner.horizon': horizon}
+             'planner.horizon': horizon, 'priors.weights.sd': weights_sd}
     return archive_config(archive, {k: v for k, v in given.items() if v is not None})
 
 
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
                  fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
-                 fall_cost=None, priors=None, horizon=None) -> Problem:
+                 fall_cost=None, priors=None, horizon=None, weights_sd=None) -> Problem:
     config = sela_config(archive, lookahead, kernel_sigma, alpha, fall_risk,
-                         fall_kernel_sigma, fall_cost, horizon)
+                         fall_kernel_sigma, fall_cost, horizon, weights_sd)
     return Problem(
         candidates=archive.normalised_descriptors(),
         prior_gr=archive.generic_reward,
@@ -259,6 +260,7 @@ class Job:
     leave_out_own: bool = False
     horizon: float = None
     noise_seed: int = None
+    weights_sd: object = None  # priors.weights.sd (None: the default)
 
 
 def run_method(job: Job):
@@ -287,7 +289,7 @@ def run_method(job: Job):
                                fall_cost=job.fall_cost,
                                priors=worker_priors(job.priors, job.archive, job.damage,
                                                     job.leave_out_own),
-                               horizon=job.horizon)
+                               horizon=job.horizon, weights_sd=job.weights_sd)
         result = METHODS[job.name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),
