@@ -8,7 +8,7 @@ a subset of the map's gaits chosen to cover its behaviour space (farthest-point 
 the normalised descriptors), the other gaits inferred by a GP over the same descriptors
 (prior mean: the intact map; what is learnt: each condition's deviation from it, and its
 falls). The result is a damage-priors file (``DamagePriors``) that SELA mixes
-(``sela_ros.core.prior_mixture``) or chooses from, as ``priors: <path>``.
+(``sela_ros.core.learning.prior_mixture``) or chooses from, as ``priors: <path>``.
 
     .venv/bin/python scripts/build_library.py --plan              # conditions, cost, size
     nice -n 15 .venv/bin/python scripts/build_library.py --workers 2 --out /work/library
@@ -102,7 +102,7 @@ def _evaluate(job):
 
 def build(archive, out, gaits, chunk, workers, only=None):
     """Evaluate every chunk not on disk yet; returns how many were evaluated now."""
-    from sela_ros.core.persistence import atomic_write
+    from sela_ros.core.storage import atomic_write
 
     subset = gait_subset(archive.normalised_descriptors(), gaits)
     settings = archive.simulator_settings
@@ -142,7 +142,7 @@ def infer(descriptors, base, gaits, gr, fallen, sigma, noise_ratio=0.1, rows=200
     label (prior 0), exponential kernel of length ``sigma`` over the descriptors."""
     from scipy.linalg import cho_factor, cho_solve
 
-    from sela_ros.core.gp import exponential_kernel
+    from sela_ros.core.learning import exponential_kernel
 
     x = descriptors[gaits]
     targets = np.column_stack([gr - base[gaits], fallen.astype(float)])
@@ -161,7 +161,7 @@ def infer(descriptors, base, gaits, gr, fallen, sigma, noise_ratio=0.1, rows=200
 
 
 def assemble(archive, out, gaits, library, only=None):
-    from sela_ros.core.damage_priors import DamagePriors, params_checksum
+    from sela_ros.core.learning import DamagePriors, params_checksum
 
     subset = gait_subset(archive.normalised_descriptors(), gaits)
     descriptors = archive.normalised_descriptors()
@@ -189,8 +189,7 @@ def assemble(archive, out, gaits, library, only=None):
 
 
 def main(argv=None):
-    from sela_ros.core.archive import load_archive
-    from sela_ros.core.archive_paths import resolve_archive_path
+    from sela_ros.core.storage import load_archive, resolve_archive_path
 
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--archive', default='8d', help="a map: '8d' (default), '2d' or a path")

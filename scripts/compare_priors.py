@@ -71,7 +71,7 @@ def oracle_medians():
 
 
 def run_one(archive, priors_all, case, goal, method, seed, args):
-    from sela_ros.core.damage_detection import DetectorConfig
+    from sela_ros.core.detection import DetectorConfig
     from sela_ros.core.mission import run_mission
     from sela_ros.core.planning import straight_line_planner
     from sim_bridge.environment import ObservedHexapod
@@ -229,9 +229,8 @@ def main(argv=None):
                         help='run nothing: print the tables of the runs in --out')
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
-    from sela_ros.core.archive import load_archive
-    from sela_ros.core.archive_paths import default_archive_path
-    from sela_ros.core.damage_priors import resolve_priors
+    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.storage import default_archive_path, load_archive
 
     methods = [m for m in args.methods.split(',') if m]
     unknown = set(methods) - set(METHODS)

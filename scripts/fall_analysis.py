@@ -17,7 +17,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sela_ros.core.archive import load_archive  # noqa: E402
+from sela_ros.core.storage import load_archive  # noqa: E402
 from sim_bridge.evaluation import evaluate_gait  # noqa: E402
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from sela_ros.core.acquisition import ucb, ucb_scores
+from sela_ros.core.learning.acquisition import ucb, ucb_scores
 
 
 def test_ucb_is_argmax():

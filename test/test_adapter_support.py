@@ -3,8 +3,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from sela_ros.core import stepper_io as io
-from sela_ros.core.archive_paths import default_archive_path
+from sela_ros.core.mission import stepper_io as io
+from sela_ros.core.storage import default_archive_path
 from sela_ros.nodes import adapter_support
 
 

@@ -5,7 +5,8 @@ import os
 import numpy as np
 import pytest
 
-from sela_ros.core.archive import (
+from sela_ros.core.storage import default_archive_path
+from sela_ros.core.storage.archive import (
     REQUIRED_METADATA_KEYS,
     Archive,
     ArchiveError,
@@ -13,7 +14,6 @@ from sela_ros.core.archive import (
     load_archive,
     make_metadata,
 )
-from sela_ros.core.archive_paths import default_archive_path
 
 SETTINGS = {'dt': 1 / 240, 'gait_duration': 3.0, 'controller_version': 'cully2015-v1',
             'model_version': 'sela-hexapod-v1'}
@@ -199,7 +199,7 @@ def test_default_archive_path_is_in_package():
 
 @pytest.mark.parametrize('name', ['8d', '2d'])
 def test_shipped_archive_is_valid(name):
-    from sela_ros.core.archive_paths import shipped_archive_path
+    from sela_ros.core.storage import shipped_archive_path
 
     path = shipped_archive_path(name)
     assert path.exists(), f'the shipped archive {path} is missing'
@@ -220,7 +220,7 @@ def test_shipped_archive_is_valid(name):
 
 
 def test_kernel_length_is_the_maps_own_and_sela_takes_it_unless_told_otherwise():
-    from sela_ros.core.learning import make_sela
+    from sela_ros.core.mission import make_sela
 
     flat = _archive()
     assert flat.kernel_sigma == 0.1  # the paper's, for a 2-D map
@@ -244,7 +244,7 @@ def test_kernel_length_is_the_maps_own_and_sela_takes_it_unless_told_otherwise()
 
 
 def test_an_8d_map_gives_the_fall_model_its_support_and_its_own_fall_kernel():
-    from sela_ros.core.learning import make_sela
+    from sela_ros.core.mission import make_sela
 
     flat = _archive()
     assert flat.stability is None and flat.fall_kernel_sigma == 0.1
@@ -267,7 +267,7 @@ def test_an_8d_map_gives_the_fall_model_its_support_and_its_own_fall_kernel():
 
 
 def test_shipped_archives_by_name():
-    from sela_ros.core.archive_paths import (
+    from sela_ros.core.storage.archive import (
         SHIPPED_ARCHIVES,
         resolve_archive_path,
         shipped_archive_path,

@@ -5,10 +5,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sela_ros.core import persistence
-from sela_ros.core.change_evidence import EvidenceConfig, change_evidence, repeat_spread
-from sela_ros.core.learning import MissionLogic
-from sela_ros.core.sela import SELA, SE2Motion
+from sela_ros.core.detection.change_evidence import EvidenceConfig, change_evidence, repeat_spread
+from sela_ros.core.learning import SELA, SE2Motion
+from sela_ros.core.mission import MissionLogic
+from sela_ros.core.storage import persistence
 
 PRIOR_GR = (0.3, 0.0, 0.0)
 

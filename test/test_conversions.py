@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from sela_ros.core.damage_detection import Verdict
+from sela_ros.core.detection import Verdict
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import grid_conversions as grids
 

@@ -4,18 +4,16 @@ import math
 import numpy as np
 import pytest
 
-from sela_ros.core.costfield import CostField, grid_graph
 from sela_ros.core.planning import (
     AStarPlanner,
     GridPlanner,
     OccupancyGrid,
     UnreachableError,
-    astar_cells,
-    inflate,
-    line_is_free,
     next_waypoint,
-    smooth_path,
 )
+from sela_ros.core.planning.costfield import CostField, grid_graph
+from sela_ros.core.planning.grid import inflate
+from sela_ros.core.planning.planner import astar_cells, line_is_free, smooth_path
 
 
 def _random_grid(rng, size, density):

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sela_ros.core.maps import load_map_file
+from sela_ros.core.planning import load_map_file
 from sela_ros.experiments.courses import load_courses
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc

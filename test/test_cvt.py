@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sela_ros.core.archive import Archive, ArchiveError, load_archive
+from sela_ros.core.storage import Archive, ArchiveError, load_archive
 from sela_ros.qd.cvt import XY_DUTY_BOUNDS, CVTMapElites, disc_samples, make_centroids
 from sela_ros.qd.evaluators import EvaluationResult, SyntheticEvaluator
 from sela_ros.qd.executors import SerialEvaluator

@@ -3,7 +3,11 @@ import math
 
 import pytest
 
-from sela_ros.core.damage_detection import DamageDetector, DetectorConfig, prediction_error
+from sela_ros.core.detection.damage_detection import (
+    DamageDetector,
+    DetectorConfig,
+    prediction_error,
+)
 
 
 def test_error_combines_position_and_heading():

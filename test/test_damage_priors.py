@@ -6,7 +6,8 @@ import sys
 import numpy as np
 import pytest
 
-from sela_ros.core.damage_priors import (
+from sela_ros.core.learning import SELA, CandidateSetGP, SE2Motion, SELAConfig
+from sela_ros.core.learning.damage_priors import (
     DamagePriorError,
     DamagePriors,
     load_damage_priors,
@@ -14,8 +15,7 @@ from sela_ros.core.damage_priors import (
     priors_path,
     resolve_priors,
 )
-from sela_ros.core.gp import CandidateSetGP
-from sela_ros.core.sela import HEDGED, SELA, SE2Motion, SELAConfig
+from sela_ros.core.learning.sela import HEDGED
 
 M = 300
 
@@ -280,7 +280,7 @@ def test_sela_takes_the_chained_runs_of_the_table_it_walks_on():
 def test_experiments_use_the_tables_beside_the_archive_and_refuse_other_cells(tmp_path):
     from test_hexapod_experiment import tiny_archive
 
-    from sela_ros.core.archive import load_archive
+    from sela_ros.core.storage import load_archive
     from sela_ros.experiments.campaign import cell_dir
 
     archive = tiny_archive(tmp_path / 'tiny.npz')
@@ -316,7 +316,7 @@ def test_experiments_use_the_tables_beside_the_archive_and_refuse_other_cells(tm
 def test_cells_without_sela_do_not_care_about_sela_only_parameters(tmp_path):
     from test_hexapod_experiment import tiny_archive
 
-    from sela_ros.core.archive import load_archive
+    from sela_ros.core.storage import load_archive
 
     archive = tiny_archive(tmp_path / 'tiny.npz')
     params = load_archive(archive).params

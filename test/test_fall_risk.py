@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from sela_ros.core.fall_risk import FallRisk, safe_choice
-from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
+from sela_ros.core.learning import SELA, SE2Motion, SELAConfig
+from sela_ros.core.learning.fall_risk import FallRisk, safe_choice
 
 
 def _grid(n=21):
@@ -173,7 +173,7 @@ def test_a_table_sets_the_support_prior_of_its_damage_and_the_robot_still_moves_
     damage whose gaits never fall makes even poorly supported gaits safe, one whose poorly
     supported gaits fall keeps them risky; the spreads stay the generic prior's, so the
     robot's own falls move it as fast."""
-    from sela_ros.core.fall_risk import BETA_PRIOR, THETA_PRIOR
+    from sela_ros.core.learning.fall_risk import BETA_PRIOR, THETA_PRIOR
 
     c, support = _supported()
     risk = FallRisk(c, sigma=0.05, stability=support)

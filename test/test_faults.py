@@ -261,8 +261,7 @@ FALLING_GAIT = 21  # of the shipped 2-D archive: tips the robot over without its
 @pytest.mark.parametrize('episodic', [False, True])
 def test_a_fallen_robot_gets_up_where_it_lies_or_is_reset_and_the_step_failed(tmp_path,
                                                                              episodic):
-    from sela_ros.core.archive import Archive, load_archive
-    from sela_ros.core.archive_paths import shipped_archive_path
+    from sela_ros.core.storage import Archive, load_archive, shipped_archive_path
 
     # An archive whose most attractive gait (straight to the first waypoint, on paper) is
     # one that makes the damaged robot fall.
@@ -352,7 +351,7 @@ def test_a_step_is_announced_only_once_saved_and_a_failed_save_is_an_error(tmp_p
                                for announced, saved, flag in on_disk), on_disk
         # The archive in use set again keeps what was learned; another one is refused
         # while anything is learned (its observations index the old archive's gaits).
-        from sela_ros.core.archive_paths import default_archive_path
+        from sela_ros.core.storage import default_archive_path
 
         learned = _observations(nodes.state_file)
         r = _set(client, 'sela_adapter', 'archive', '', ParameterType.PARAMETER_STRING)

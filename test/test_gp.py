@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from sela_ros.core.gp import CandidateSetGP, exponential_kernel
+from sela_ros.core.learning import CandidateSetGP, exponential_kernel
 
 
 def closed_form(X, Y, Xs, prior, sigma=0.1, variance=1.0, noise=0.001):

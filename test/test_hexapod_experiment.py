@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sela_ros.core.archive import Archive, make_metadata
+from sela_ros.core.storage import Archive, make_metadata
 from sela_ros.experiments.cli import main
 from sim_bridge import experiment_env
 from sim_bridge.evaluation import evaluate_gait

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sela_ros.core.archive import load_archive
+from sela_ros.core.storage import load_archive
 from sela_ros.qd.emitter import MapElitesEmitter
 from sela_ros.qd.evaluators import EvaluationResult, SyntheticEvaluator, arc_fitness
 from sela_ros.qd.executors import DaskEvaluator, ProcessPoolEvaluator, SerialEvaluator

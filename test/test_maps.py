@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from sela_ros.core.maps import (
+from sela_ros.core.planning.maps import (
     MapError,
     grid_from_description,
     load_map_file,

@@ -9,10 +9,9 @@ import time
 import numpy as np
 import pytest
 
-from sela_ros.core.learning import MissionLogic
-from sela_ros.core.mission import as_seen_in_odometry
-from sela_ros.core.persistence import StateError, atomic_write_json, load_state, set_aside
-from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
+from sela_ros.core.learning import SELA, SE2Motion, SELAConfig
+from sela_ros.core.mission import MissionLogic, as_seen_in_odometry
+from sela_ros.core.storage.persistence import StateError, atomic_write_json, load_state, set_aside
 from sela_ros.nodes.planner_node import grid_from_description, load_map_file
 
 
@@ -86,7 +85,7 @@ def test_state_file_round_trip_and_bad_files(tmp_path):
 def test_atomic_write_survives_sigkill(tmp_path):
     """A writer killed mid-loop leaves a complete file: the last one it wrote."""
     path = tmp_path / 'state.json'
-    code = ('import sys\nfrom sela_ros.core.persistence import atomic_write_json\ni = 0\n'
+    code = ('import sys\nfrom sela_ros.core.storage.persistence import atomic_write_json\ni = 0\n'
             'while True:\n    atomic_write_json(sys.argv[1], {"i": i, "pad": "x" * 200000})\n'
             '    i += 1\n')
     proc = subprocess.Popen([sys.executable, '-c', code, str(path)],
@@ -172,10 +171,8 @@ class _FakeRobot:
 def test_run_mission_drives_the_stepper_to_the_goal_after_a_fall(reset_on_fall):
     from types import SimpleNamespace
 
-    from sela_ros.core.learning import make_sela
-    from sela_ros.core.mission import run_mission
+    from sela_ros.core.mission import StepperConfig, make_sela, run_mission
     from sela_ros.core.planning import straight_line_planner
-    from sela_ros.core.stepper_io import StepperConfig
 
     rng = np.random.default_rng(3)
     descriptors = rng.random((40, 2))
@@ -205,10 +202,8 @@ def test_run_mission_drives_the_stepper_to_the_goal_after_a_fall(reset_on_fall):
 def test_run_mission_ends_at_once_with_the_reason_when_the_goal_cannot_be_planned():
     from types import SimpleNamespace
 
-    from sela_ros.core.learning import make_sela
-    from sela_ros.core.maps import default_grid
-    from sela_ros.core.mission import run_mission
-    from sela_ros.core.planning import GridPlanner
+    from sela_ros.core.mission import make_sela, run_mission
+    from sela_ros.core.planning import GridPlanner, default_grid
 
     descriptors = np.random.default_rng(0).random((10, 2))
     archive = SimpleNamespace(params=np.zeros((10, 36)), kernel_sigma=0.1,
@@ -223,10 +218,8 @@ def test_run_mission_ends_at_once_with_the_reason_when_the_goal_cannot_be_planne
 def test_a_robot_that_starts_off_the_planners_map_is_led_onto_it_and_reaches_the_goal():
     from types import SimpleNamespace
 
-    from sela_ros.core.learning import make_sela
-    from sela_ros.core.mission import run_mission
+    from sela_ros.core.mission import StepperConfig, make_sela, run_mission
     from sela_ros.core.planning import GridPlanner, OccupancyGrid
-    from sela_ros.core.stepper_io import StepperConfig
 
     rng = np.random.default_rng(5)
     descriptors = rng.random((60, 2))

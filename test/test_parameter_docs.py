@@ -41,8 +41,8 @@ def test_the_shipped_yaml_gives_every_parameter_the_codes_default(node):
 
 
 def test_the_adapters_defaults_are_the_cores():
-    from sela_ros.core.sela_config import SELAConfig
-    from sela_ros.core.stepper_io import StepperConfig
+    from sela_ros.core.learning import SELAConfig
+    from sela_ros.core.mission import StepperConfig
     from sela_ros.nodes import adapter_params
 
     specs = {s.name: s.default for s in adapter_params.PARAMETERS}

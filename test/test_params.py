@@ -5,7 +5,7 @@ import sys
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from sela_ros.core.damage_detection import DetectorConfig
+from sela_ros.core.detection import DetectorConfig
 from sela_ros.nodes.params import (
     STARTUP_ONLY,
     Spec,

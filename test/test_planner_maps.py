@@ -11,7 +11,7 @@ from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 
-from sela_ros.core.maps import load_map_file
+from sela_ros.core.planning import load_map_file
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes.interface import LATCHED_QOS, STATE_QOS

@@ -12,10 +12,9 @@ from sela_ros.core.planning import (
     OffMapError,
     PlanningError,
     UnreachableError,
-    astar,
-    astar_cells,
     next_waypoint,
 )
+from sela_ros.core.planning.planner import astar, astar_cells
 
 
 def grid_from(rows, resolution=1.0):

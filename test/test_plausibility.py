@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
+from sela_ros.core.validation import ImplausibleOutcome, OutcomeLimits, check_outcome
 
 
 def test_ordinary_outcomes_pass():

@@ -8,13 +8,11 @@ import numpy as np
 import pytest
 from test_stepper import Driver, of, only
 
-from sela_ros.core import persistence
-from sela_ros.core.archive import ArchiveError, load_archive
-from sela_ros.core.archive_paths import default_archive_path
-from sela_ros.core.damage_priors import DamagePriorError, load_damage_priors, priors_path
-from sela_ros.core.npz_files import MAX_NPZ_BYTES, check_npz_size
-from sela_ros.core.plausibility import OutcomeLimits
-from sela_ros.core.stepper_io import OutcomeReceived, Report, SendGait, State
+from sela_ros.core.learning.damage_priors import DamagePriorError, load_damage_priors, priors_path
+from sela_ros.core.mission.stepper_io import OutcomeReceived, Report, SendGait, State
+from sela_ros.core.storage import ArchiveError, default_archive_path, load_archive, persistence
+from sela_ros.core.storage.npz_files import MAX_NPZ_BYTES, check_npz_size
+from sela_ros.core.validation import OutcomeLimits
 
 
 def test_the_stepper_refuses_an_outcome_its_own_poses_contradict():

@@ -2,10 +2,16 @@
 import numpy as np
 import pytest
 
-from sela_ros.core.damage_priors import DamagePriors, params_checksum
-from sela_ros.core.fall_risk import FallRisk
-from sela_ros.core.prior_mixture import Mixture, fit_mixture
-from sela_ros.core.sela import MIXTURE, SELA, SE2Motion, SELAConfig, prior_reason
+from sela_ros.core.learning import (
+    SELA,
+    DamagePriors,
+    FallRisk,
+    SE2Motion,
+    SELAConfig,
+    params_checksum,
+)
+from sela_ros.core.learning.prior_mixture import Mixture, fit_mixture
+from sela_ros.core.learning.sela import MIXTURE, prior_reason
 
 M = 400
 
@@ -241,7 +247,7 @@ def test_the_mixture_is_used_only_while_it_predicts_the_steps_better():
 
 
 def test_the_posterior_mean_of_one_gait_under_another_prior():
-    from sela_ros.core.gp import CandidateSetGP
+    from sela_ros.core.learning import CandidateSetGP
 
     candidates, intact, priors = library(10)
     gp = CandidateSetGP(candidates, intact, sigma=0.3)

@@ -9,8 +9,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from std_srvs.srv import Trigger
 
-from sela_ros.core.archive import load_archive
-from sela_ros.core.archive_paths import default_archive_path
+from sela_ros.core.storage import default_archive_path, load_archive
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sela_ros.tools.mission_client import MissionClient
@@ -66,10 +65,10 @@ def _config():
 def _experiment_runner_mission(damage, seed, goal):
     """The same mission through the experiment runner (``sela-experiment hexapod``'s SELA
     replicate, no DDS), with the sim_bridge node's noise seed."""
-    from sela_ros.core.damage_detection import DetectorConfig
-    from sela_ros.core.maps import DEFAULT_INFLATION, DEFAULT_MAP
-    from sela_ros.core.sela_config import SELAConfig
-    from sela_ros.core.stepper_io import StepperConfig
+    from sela_ros.core.detection import DetectorConfig
+    from sela_ros.core.learning import SELAConfig
+    from sela_ros.core.mission import StepperConfig
+    from sela_ros.core.planning import DEFAULT_INFLATION, DEFAULT_MAP
     from sela_ros.experiments import arguments
     from sela_ros.experiments.hexapod import Job, run_method
 

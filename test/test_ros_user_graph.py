@@ -13,7 +13,7 @@ from nav_msgs.msg import Path as PathMsg
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 from std_srvs.srv import Trigger
 
-from sela_ros.core.mission_status import vector_text
+from sela_ros.core.mission import vector_text
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sela_ros.tools.mission_client import MissionClient

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sela_ros.core.sela import (
+from sela_ros.core.learning import (
     SELA,
     PointMotion,
     SE2Motion,
@@ -226,7 +226,7 @@ def test_landing_distances_of_many_poses_at_once_are_those_of_each(motion):
 
 
 def test_the_step_after_a_given_waypoint_goes_on_the_same_way_and_stops_at_the_goal():
-    from sela_ros.core.learning import following_waypoint
+    from sela_ros.core.mission.logic import following_waypoint
 
     assert np.allclose(following_waypoint((0, 0, 1.0), (0.6, 0.0), (3.0, 0.0)), (1.2, 0.0))
     assert np.allclose(following_waypoint((0, 0), (0.6, 0.0), (0.8, 0.0)), (0.8, 0.0))

@@ -48,8 +48,7 @@ def test_an_archive_without_solver_iterations_keeps_the_old_default(tmp_path):
 
 
 def test_without_an_archive_it_takes_the_shipped_one_and_none_keeps_its_own():
-    from sela_ros.core.archive import load_archive
-    from sela_ros.core.archive_paths import default_archive_path
+    from sela_ros.core.storage import default_archive_path, load_archive
 
     stamp = load_archive(default_archive_path()).simulator_settings
     dt, duration, iterations, log = _settings()

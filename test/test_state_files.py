@@ -6,14 +6,14 @@ import threading
 import numpy as np
 import pytest
 
-from sela_ros.core.persistence import (
+from sela_ros.core.learning import SELA, SE2Motion
+from sela_ros.core.storage.persistence import (
     StateError,
     StateStore,
     atomic_write_json,
     load_state,
     resume_state,
 )
-from sela_ros.core.sela import SELA, SE2Motion
 
 SIZE = 20
 

@@ -7,9 +7,9 @@ adaptation asked mid-gait, holds, restarts (resume or drop), odometry that moves
 import numpy as np
 import pytest
 
-from sela_ros.core.sela import SELA, SE2Motion
-from sela_ros.core.stepper import MissionStepper
-from sela_ros.core.stepper_io import (
+from sela_ros.core.learning import SELA, SE2Motion
+from sela_ros.core.mission import MissionStepper
+from sela_ros.core.mission.stepper_io import (
     AdaptRequested,
     CancelRequested,
     ClearRequested,
@@ -515,7 +515,7 @@ def test_a_step_is_saved_before_it_is_announced():
     ('reset', False, False)])
 def test_a_new_detection_while_adapting_keeps_what_was_learned_unless_the_evidence_says(
         policy, same_gait_elsewhere, kept):
-    from sela_ros.core.learning import MissionLogic
+    from sela_ros.core.mission import MissionLogic
 
     logic = MissionLogic(_sela(), adapt_on_start=True, on_detection=policy)
     pose = np.zeros(3)
@@ -532,7 +532,7 @@ def test_a_new_detection_while_adapting_keeps_what_was_learned_unless_the_eviden
 
 
 def test_the_prior_in_use_is_reported_when_a_damage_prior_takes_over():
-    from sela_ros.core.damage_priors import DamagePriors
+    from sela_ros.core.learning import DamagePriors
 
     sela = _sela()
     table = np.tile(FORWARD, (sela.num_candidates, 1))  # on this damage every gait goes 0.2 m

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from sela_ros.core.validation import check_number, finite_array, number_problem
+from sela_ros.core.validation.numeric import check_number, finite_array, number_problem
 
 
 @pytest.mark.parametrize('value, limits, problem', [

@@ -1,6 +1,6 @@
 """The ``sela_adapter`` node: the archive, the GPs and UCB; chooses gaits and learns.
 
-A thin layer around :class:`sela_ros.core.stepper.MissionStepper` (plan -> ask -> command ->
+A thin layer around :class:`sela_ros.core.mission.MissionStepper` (plan -> ask -> command ->
 outcome -> verdict -> learn): each message or service answer becomes a stepper event, each
 command it returns a message, a service call or a file write; no callback waits. Outcomes
 and verdicts (``damage_detector/verdict``) pair with the command by id. ``~/adapt`` starts
@@ -19,12 +19,10 @@ from rclpy.node import Node
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from sela_ros.core import persistence
-from sela_ros.core import stepper_io as io
-from sela_ros.core.archive import ArchiveError, load_archive
-from sela_ros.core.archive_paths import resolve_archive_path
+from sela_ros.core.mission import stepper_io as io
 from sela_ros.core.planning import OccupancyGrid
-from sela_ros.core.plausibility import OutcomeLimits
+from sela_ros.core.storage import ArchiveError, load_archive, persistence, resolve_archive_path
+from sela_ros.core.validation import OutcomeLimits
 from sela_ros.nodes import adapter_params as params
 from sela_ros.nodes import adapter_support, markers
 from sela_ros.nodes import conversions as conv

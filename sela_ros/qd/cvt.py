@@ -24,8 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from sela_ros.core.archive import Archive, make_metadata
-from sela_ros.core.persistence import atomic_write
+from sela_ros.core.storage import Archive, atomic_write, make_metadata
 from sela_ros.qd.evaluators import EvaluationResult
 from sela_ros.qd.map_elites import CHECKPOINT_FORMAT_VERSION, MapElites
 
@@ -310,7 +309,7 @@ class CVTMapElites(MapElites):
         return int(archive.stats.num_elites)
 
     def to_archive(self, **metadata: Any) -> Archive:
-        """The elites as an :class:`~sela_ros.core.archive.Archive`, centroids included.
+        """The elites as an :class:`~sela_ros.core.storage.Archive`, centroids included.
 
         Args:
             **metadata: simulator settings, descriptor/fitness names, ...; the CVT, bounds

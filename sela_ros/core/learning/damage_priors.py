@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sela_ros.core.npz_files import NpzTooLarge, check_npz_size
-from sela_ros.core.plausibility import ImplausibleOutcome, check_generic_rewards
+from sela_ros.core.storage import NpzTooLarge, check_npz_size
+from sela_ros.core.validation import ImplausibleOutcome, check_generic_rewards
 
 #: Scale of a table's prediction error for a gait chained from the last one (x, y in metres,
 #: yaw in radians): the measured error of chaining against a standing start is 0.07 m and
@@ -81,7 +81,7 @@ class Selection:
     archive's own, the intact map), its ``name``, its ``misfit``, and whether it
     ``reproduced`` every step made from a standing start (the robot's own damage, then: its
     chained runs hold for this robot). ``mixture``: a
-    :class:`~sela_ros.core.prior_mixture.Mixture` of the tables instead of one (``index``
+    :class:`~sela_ros.core.learning.prior_mixture.Mixture` of the tables instead of one (``index``
     None), or None."""
 
     index: int | None

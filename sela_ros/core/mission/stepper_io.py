@@ -1,6 +1,6 @@
 """What the mission stepper takes (events) and gives (commands), and its state. ROS-free.
 
-The driver of a :class:`sela_ros.core.stepper.MissionStepper` (the ``sela_adapter`` node,
+The driver of a :class:`sela_ros.core.mission.MissionStepper` (the ``sela_adapter`` node,
 :func:`sela_ros.core.mission.run_mission`, a test) turns what it observes into the events
 below and carries out the commands the stepper returns. Poses are ``(x, y, yaw)`` in the
 odom frame, times in seconds.
@@ -10,7 +10,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from sela_ros.core.sela import Decision
+from sela_ros.core.learning import Decision
 
 # --- events (what the driver observed) -----------------------------------------------------
 

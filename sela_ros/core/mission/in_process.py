@@ -1,6 +1,6 @@
 """The mission in process: the ``sela_adapter`` node's decision loop, driven directly. ROS-free.
 
-:func:`run_mission` drives a :class:`~sela_ros.core.stepper.MissionStepper` (the object the
+:func:`run_mission` drives a :class:`~sela_ros.core.mission.MissionStepper` (the object the
 ``sela_adapter`` node drives from DDS messages) against an environment, a planner and the
 damage detector called directly: every experiment that reports SELA's figures goes through
 it, so a figure is what a user of the nodes gets. For the same seed the node and this loop
@@ -25,11 +25,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
+from sela_ros.core.detection import DamageDetector, DetectorConfig
 from sela_ros.core.geometry import quaternion_to_yaw, yaw_to_quaternion
-from sela_ros.core.planning import PlanningError
-from sela_ros.core.stepper import MissionStepper
-from sela_ros.core.stepper_io import (
+from sela_ros.core.mission.stepper import MissionStepper
+from sela_ros.core.mission.stepper_io import (
     GoalsReceived,
     MissionEnded,
     OutcomeReceived,
@@ -43,6 +42,7 @@ from sela_ros.core.stepper_io import (
     StepperConfig,
     VerdictReceived,
 )
+from sela_ros.core.planning import PlanningError
 
 
 def as_seen_in_odometry(pose):
@@ -61,8 +61,8 @@ class MissionRun:
 
     Attributes:
         success: every goal reached (judged on the observed pose, as the adapter judges).
-        end: the stepper's :class:`~sela_ros.core.stepper_io.MissionEnded`.
-        logic: the stepper's :class:`~sela_ros.core.learning.MissionLogic` (``records``: the
+        end: the stepper's :class:`~sela_ros.core.mission.stepper_io.MissionEnded`.
+        logic: the stepper's :class:`~sela_ros.core.mission.MissionLogic` (``records``: the
             steps).
         goal_steps: gaits executed when each goal of the mission was reached.
         falls: steps that ended fallen.
@@ -90,8 +90,8 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             after it; a fallen robot is righted where it lies), ``reset()`` (back at the
             start: only with ``stepper_config.reset_on_fall``); optionally ``falls`` (a
             count) and ``standing`` (the next gait starts from the settled standing state).
-        sela: the :class:`~sela_ros.core.sela.SELA` learner (e.g.
-            :func:`~sela_ros.core.learning.make_sela`).
+        sela: the :class:`~sela_ros.core.learning.SELA` learner (e.g.
+            :func:`~sela_ros.core.mission.make_sela`).
         goals: ``[(x, y), ...]`` visited in order (one goal: a plain mission).
         planner: ``(start_xy, goal_xy) -> path (n, 2)``, the reward selection layer.
         detector_config: the damage detector's (:class:`DetectorConfig`, the node's

@@ -1,6 +1,6 @@
 """A prior mean mixed from the damage priors' tables, fitted to the steps seen.
 
-A damage nobody foresaw is rarely one of the tables (:mod:`sela_ros.core.damage_priors`),
+A damage nobody foresaw is rarely one of the tables (:mod:`sela_ros.core.learning.damage_priors`),
 but it is often close to a mixture of them: two legs removed move the robot roughly as the
 two single-leg tables' deviations from the intact map added up, a shortened leg as part of
 that leg's removal. So instead of picking one table, the prior mean is
@@ -9,7 +9,7 @@ that leg's removal. So instead of picking one table, the prior mean is
 
 with the weights ``w`` fitted to the observed generic rewards by Bayesian linear regression
 (a Gaussian prior on ``w`` truncated at 0, its posterior mode by NNLS: a damage never
-undoes another; Gaussian errors of :data:`~sela_ros.core.damage_priors.
+undoes another; Gaussian errors of :data:`~sela_ros.core.learning.damage_priors.
 RESIDUAL_SCALE` per step: what a gait chained from the last one differs from the same gait
 from a standing start; not the GP's noise, which is the spread of one gait repeated from the
 same posture and would make the weights chase every chaining error). Without the
@@ -18,7 +18,7 @@ d_k(y)``, added to the exponential one, with the steps taken as independent; the
 posterior mean is the mixture's mean plus their usual correction near the gaits tried.
 As :meth:`DamagePriors.select` does, the fit ignores gaits that fell
 (their displacement is the tumble's), counts steps from a standing start (the tables' own
-experiment) :data:`~sela_ros.core.damage_priors.STANDING_PRECISION` times more precisely,
+experiment) :data:`~sela_ros.core.learning.damage_priors.STANDING_PRECISION` times more precisely,
 and is robust to a share of chained steps far off any prior (a few reweighting passes of the
 same two-component error model).
 
@@ -35,7 +35,7 @@ the mixture makes it fall, each table counted with its weight clipped to [0, 1] 
 ``1 - prod_k (1 - c_k fallen_k)``), so two legs removed fear the falls of both tables and a
 shortened leg part of its removal's.
 
-SELA (:meth:`~sela_ros.core.sela.SELA.select_prior`) uses the mixture only while no table
+SELA (:meth:`~sela_ros.core.learning.SELA.select_prior`) uses the mixture only while no table
 reproduced the robot's standing starts, and only while it has predicted the steps, each
 before it was learnt, better than the one-table choice (a prequential score: the fit alone
 always prefers K weights to one table). :func:`step_log_likelihood` is that score's term.
@@ -52,7 +52,7 @@ import numpy as np
 from scipy.linalg import cholesky, solve_triangular
 from scipy.optimize import nnls
 
-from sela_ros.core.damage_priors import (
+from sela_ros.core.learning.damage_priors import (
     OUTLIER_FRACTION,
     OUTLIER_SCALE,
     RESIDUAL_SCALE,

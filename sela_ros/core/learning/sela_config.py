@@ -1,14 +1,14 @@
 """SELA's parameters (:class:`SELAConfig`), with the paper's defaults, in one place.
 
 Dotted names (``gp.kernel.sigma``) are the node parameters and the keys of
-``config/*.yaml``; :mod:`sela_ros.core.sela` uses them and imports them from here.
+``config/*.yaml``; :mod:`sela_ros.core.learning.sela` uses them and imports them from here.
 """
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
 
-from sela_ros.core import acquisition, damage_priors, fall_risk, gp, prior_mixture
+from sela_ros.core.learning import acquisition, damage_priors, fall_risk, gp, prior_mixture
 from sela_ros.core.validation import check_number
 
 
@@ -49,8 +49,8 @@ class SELAConfig:
     priors_max_misfit_reproduced: float = damage_priors.DEFAULT_MAX_MISFIT_REPRODUCED
     # Prior standard deviation of each table's weight in the mixture of damage priors that is
     # the prior mean while no table reproduced the robot's standing starts
-    # (:mod:`~sela_ros.core.prior_mixture`); 0: no mixture, the one table that best explains
-    # the steps (within priors.max.misfit) or the intact map.
+    # (:mod:`~sela_ros.core.learning.prior_mixture`); 0: no mixture, the one table that best
+    # explains the steps (within priors.max.misfit) or the intact map.
     priors_weights_sd: float = prior_mixture.DEFAULT_WEIGHT_SD
 
     def __post_init__(self):

@@ -12,7 +12,7 @@ compiled code over a sparse graph that numpy builds in a few vectorised lines, a
 returns the shortest-path tree (predecessors) with the distances. A dedicated grid planner
 package would add a dependency for what a dozen lines of numpy and one scipy call give.
 
-The graph is the one :func:`sela_ros.core.planning.astar_cells` searches: straight moves
+The graph is the one :func:`sela_ros.core.planning.planner.astar_cells` searches: straight moves
 cost 1 cell, diagonal moves sqrt 2, and a diagonal may not cut the corner of an occupied
 cell. So the field's cost at the start is exactly A*'s path cost (tested on random grids).
 """
@@ -23,7 +23,7 @@ from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from sela_ros.core.grid import MOVES
+from sela_ros.core.planning.grid import MOVES
 
 
 def grid_graph(free) -> csr_matrix:

@@ -12,10 +12,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sela_ros.core import acquisition, change_evidence, damage_priors, fall_risk, gp, prior_mixture
-from sela_ros.core.motion import PointMotion, SE2Motion  # noqa: F401 (also imported from here)
+from sela_ros.core.detection import change_evidence
+from sela_ros.core.learning import acquisition, damage_priors, fall_risk, gp, prior_mixture
+from sela_ros.core.learning.sela_config import SELAConfig
 from sela_ros.core.planning import next_waypoint, straight_line_planner
-from sela_ros.core.sela_config import HORIZONS, SELAConfig  # noqa: F401 (imported from here)
 
 
 def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
@@ -94,11 +94,11 @@ class SELA:
         goal: goal ``(x, y)``; may be set later with :meth:`set_goal`.
         config: :class:`SELAConfig` or a dict of dotted names.
         prior_fall_rate: ``(M,)`` fall rate of each behaviour on the robot the archive was
-            built on (prior of :class:`~sela_ros.core.fall_risk.FallRisk`); None: zeros.
+            built on (prior of :class:`~sela_ros.core.learning.FallRisk`); None: zeros.
         stability: ``(M,)`` a feature that makes a behaviour less likely to fall (the 8-D
-            hexapod map's support, :attr:`~sela_ros.core.archive.Archive.stability`): the
+            hexapod map's support, :attr:`~sela_ros.core.storage.Archive.stability`): the
             risk of untried behaviours is learnt as a logistic model of it; None: one rate.
-        priors: :class:`~sela_ros.core.damage_priors.DamagePriors`, the same behaviours on
+        priors: :class:`~sela_ros.core.learning.DamagePriors`, the same behaviours on
             foreseen damages: before each choice the prior that best explains the steps seen
             (one table, or their mixture: :meth:`select_prior`) is the GPs' prior mean;
             None: always the intact map.
@@ -141,7 +141,7 @@ class SELA:
 
     @property
     def priors(self):
-        """The damage priors (:class:`~sela_ros.core.damage_priors.DamagePriors`) or None."""
+        """The damage priors (:class:`~sela_ros.core.learning.DamagePriors`) or None."""
         return self._priors
 
     @priors.setter
@@ -197,7 +197,8 @@ class SELA:
 
     def change_evidence(self, config=None) -> change_evidence.Evidence:
         """Whether the latest observations say the robot changed
-        (:func:`~sela_ros.core.change_evidence.change_evidence`, with this SELA's kernel)."""
+        (:func:`~sela_ros.core.detection.change_evidence.change_evidence`, with this SELA's
+        kernel)."""
         idx, grs = self.observations
         c = self.config
         return change_evidence.change_evidence(self._candidates, self._prior, idx, grs,
@@ -250,7 +251,7 @@ class SELA:
         best explains the steps seen so far (:meth:`DamagePriors.select`) if it reproduced
         the robot's standing starts (the robot's own damage, foreseen) or no step started
         standing, else, with ``priors.weights.sd`` > 0, the mixture of the tables that fits
-        the steps (:func:`~sela_ros.core.prior_mixture.fit_mixture`); with 0, the selected
+        the steps (:func:`~sela_ros.core.learning.prior_mixture.fit_mixture`); with 0, the selected
         table or the intact map whatever it reproduced."""
         if self.priors is None or not self._gp.num_samples:
             return damage_priors.INTACT

@@ -27,7 +27,7 @@ import os
 
 import numpy as np
 
-from sela_ros.core.planning import OccupancyGrid
+from sela_ros.core.planning.grid import OccupancyGrid
 
 MAP_SERVER_MODES = ('trinary', 'scale', 'raw')
 

@@ -2,7 +2,7 @@
 
 :class:`PointMotion` (the toy world's point robot) and :class:`SE2Motion` (the hexapod: the GR
 in the robot's frame at the start of the behaviour); each also says where many behaviours land
-from many poses at once (the two-step choice of :class:`~sela_ros.core.sela.SELA`).
+from many poses at once (the two-step choice of :class:`~sela_ros.core.learning.sela.SELA`).
 """
 from __future__ import annotations
 

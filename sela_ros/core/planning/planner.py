@@ -6,7 +6,7 @@ of a behaviour is then minus the distance from that waypoint to where it is pred
 take the robot.
 
 :class:`GridPlanner` reads the path off a cost-to-go field computed once per goal and map
-(:mod:`sela_ros.core.costfield`), so a step costs milliseconds on a million-cell map;
+(:mod:`sela_ros.core.planning.costfield`), so a step costs milliseconds on a million-cell map;
 :func:`astar` and :class:`AStarPlanner` (A* from scratch at every call) are kept as the
 reference its paths are tested against and benchmarked beside
 (``benchmarks/bench_planning.py``).
@@ -19,8 +19,8 @@ from collections import OrderedDict
 
 import numpy as np
 
-from sela_ros.core.costfield import CostField, grid_graph
-from sela_ros.core.grid import (  # noqa: F401  (the planning API: callers import them here)
+from sela_ros.core.planning.costfield import CostField, grid_graph
+from sela_ros.core.planning.grid import (
     MOVES,
     SQRT2,
     InObstacleError,
@@ -277,8 +277,8 @@ class GridPlanner(AStarPlanner):
     """The reward selection layer at navigation scale: A*'s paths, read off a field.
 
     Same paths' cost, same inflation, same way out of an obstacle as :class:`AStarPlanner`,
-    but the shortest paths come from a :class:`~sela_ros.core.costfield.CostField` computed
-    once per goal (Dijkstra from the goal over the whole map, in compiled code) and kept
+    but the shortest paths come from a :class:`~sela_ros.core.planning.costfield.CostField`
+    computed once per goal (Dijkstra from the goal over the whole map, in compiled code) and kept
     for the next calls: a call then follows the field from the robot's cell, smooths and
     returns, in milliseconds on a 1000 x 1000 map. A robot that strays into an obstacle or
     its margin is led to the nearest cell (Euclidean) from which the goal can be reached.

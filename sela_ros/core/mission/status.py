@@ -12,7 +12,7 @@ space-separated numbers. ROS-free.
 """
 import math
 
-from sela_ros.core.stepper_io import Level, PublishStatus
+from sela_ros.core.mission.stepper_io import Level, PublishStatus
 
 
 def mission_status(stepper, reward=None):

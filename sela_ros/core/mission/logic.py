@@ -7,17 +7,17 @@ showed it; what was learned before is set aside (kept in the state), never delet
 """
 import numpy as np
 
-from sela_ros.core.change_evidence import EvidenceConfig
-from sela_ros.core.sela import SELA, SE2Motion, SELAConfig
-from sela_ros.core.stepper_io import StepRecord
+from sela_ros.core.detection import EvidenceConfig
+from sela_ros.core.learning import SELA, SE2Motion, SELAConfig
+from sela_ros.core.mission.stepper_io import StepRecord
 
 
 def archive_config(archive, config=None) -> SELAConfig:
     """SELA parameters for ``archive``: ``config`` (dotted names), where ``gp.kernel.sigma``,
     ``fall.kernel.sigma`` and ``planner.horizon`` left out (or 0) are the archive's own
-    (:attr:`~sela_ros.core.archive.Archive.kernel_sigma`,
-    :attr:`~sela_ros.core.archive.Archive.fall_kernel_sigma`,
-    :attr:`~sela_ros.core.archive.Archive.planner_horizon`)."""
+    (:attr:`~sela_ros.core.storage.Archive.kernel_sigma`,
+    :attr:`~sela_ros.core.storage.Archive.fall_kernel_sigma`,
+    :attr:`~sela_ros.core.storage.Archive.planner_horizon`)."""
     config = dict(config or {})
     if not config.get('gp.kernel.sigma'):
         config['gp.kernel.sigma'] = archive.kernel_sigma
@@ -31,8 +31,8 @@ def archive_config(archive, config=None) -> SELAConfig:
 def make_sela(archive, config=None, priors=None):
     """A SE(2) SELA over the archive's behaviours (prior mean: the intact robot's GR), with
     :func:`archive_config`; the fall model takes the archive's
-    :attr:`~sela_ros.core.archive.Archive.stability` when it has one; ``priors``: damage
-    priors for these behaviours (:mod:`sela_ros.core.damage_priors`) or None."""
+    :attr:`~sela_ros.core.storage.Archive.stability` when it has one; ``priors``: damage
+    priors for these behaviours (:mod:`sela_ros.core.learning.damage_priors`) or None."""
     return SELA(archive.normalised_descriptors(), archive.generic_reward, SE2Motion(),
                 config=archive_config(archive, config),
                 stability=getattr(archive, 'stability', None), priors=priors)

@@ -13,7 +13,7 @@ from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from sela_ros.core.plausibility import ImplausibleOutcome, check_generic_rewards
+from sela_ros.core.validation import ImplausibleOutcome, check_generic_rewards
 
 STATE_FORMAT = 1
 
@@ -93,7 +93,7 @@ def load_state(path, archive_size, gr_dim=3, limits=None):
     Everything the learner will replay is checked here, before any of it is used: the
     format, the archive size, the observations (integer indices inside the archive, one
     finite generic reward of ``gr_dim`` values each, within what one gait can do:
-    ``limits``, :class:`~sela_ros.core.plausibility.OutcomeLimits`, as live outcomes), the
+    ``limits``, :class:`~sela_ros.core.validation.OutcomeLimits`, as live outcomes), the
     learning set aside and the goal; NaN or infinity anywhere in the file makes it unusable.
     Returns None when there is no file.
 

@@ -6,7 +6,7 @@ adaptation) -> the next step; falls, resets, time-outs, early or late adaptation
 resuming after a restart are part of it. :class:`MissionStepper` never waits and never reads
 a clock: its driver (the ``sela_adapter`` node, :func:`sela_ros.core.mission.run_mission`, a
 test) passes the time with each event and carries out the commands it returns (see
-:mod:`sela_ros.core.stepper_io`), so the DDS mission takes the in-process mission's gaits.
+:mod:`sela_ros.core.mission.stepper_io`), so the DDS mission takes the in-process mission's gaits.
 Steps start from the latest outcome's observed pose, or from odometry when there is none
 (start, reset, restart), between missions, or after the simulator restarted.
 """
@@ -15,15 +15,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from sela_ros.core import stepper_io as io
 from sela_ros.core.geometry import planar_distance
-from sela_ros.core.learning import MissionLogic
-from sela_ros.core.mission_state import mission_snapshot, pending_from_snapshot
-from sela_ros.core.mission_status import detection_status, goal_status, mission_status
-from sela_ros.core.planning import next_waypoint
-from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
-from sela_ros.core.sela import prior_reason
-from sela_ros.core.stepper_io import (
+from sela_ros.core.learning.sela import Decision, prior_reason
+from sela_ros.core.mission import stepper_io as io
+from sela_ros.core.mission.logic import MissionLogic
+from sela_ros.core.mission.status import detection_status, goal_status, mission_status
+from sela_ros.core.mission.stepper_io import (
     AskedPlan,
     Level,
     MissionEnded,
@@ -39,6 +36,8 @@ from sela_ros.core.stepper_io import (
     State,
     StepperConfig,
 )
+from sela_ros.core.planning import next_waypoint
+from sela_ros.core.validation import ImplausibleOutcome, OutcomeLimits, check_outcome
 
 
 class MissionStepper:
@@ -492,15 +491,37 @@ class MissionStepper:
     # --- status and persistence ----------------------------------------------------------
 
     def status(self, reward=None):
-        """The mission status as text values (see :mod:`sela_ros.core.mission_status`)."""
+        """The mission status as text values (see :mod:`sela_ros.core.mission.status`)."""
         return mission_status(self, reward)
 
     def _save(self):
         return SaveState(self.snapshot())
 
     def snapshot(self):
-        """What was learned and where the mission stands, as JSON-able values."""
-        return mission_snapshot(self)
+        """What was learned and where the mission stands, as JSON-able values: the ``sela``
+        and ``mission`` sections of the adapter's state file."""
+        p = self.pending
+        pending = None
+        if p is not None and p.decision is not None and self.state in (State.EXECUTING,
+                                                                          State.VERDICT):
+            d = p.decision
+            pending = {'id': p.behavior_id, 'step': p.step, 'index': int(d.index),
+                       'pose': _list(p.pose), 'waypoint': _list(d.waypoint),
+                       'predicted_gr': _list(d.predicted_gr),
+                       'predicted_pose': _list(d.predicted_pose), 'reward': d.reward,
+                       'sigma': d.sigma}
+        last = self.logic.last
+        pose = self.current_pose()
+        return {'sela': self.sela.state_dict(), 'mission': {
+            'state': self.state.value, 'steps': self.steps, 'mission_id': self.mission_id,
+            'failed_steps': self.failed_steps,
+            'goal': None if self.goal is None else _list(self.goal),
+            'goals_left': [_list(g) for g in self.goals_left],
+            'goal_index': self.goal_index, 'goal_count': self.goal_count,
+            'pose': None if pose is None else _list(pose),
+            'adapting': self.logic.adapting, 'adaptations': self.logic.adaptations,
+            'last': None if last is None else [int(last[0]), _list(last[1])],
+            'next_id': self.next_id, 'pending': pending, 'reset_needed': self.reset_needed}}
 
     def restore(self, snapshot, now):
         """Take back what :meth:`snapshot` saved; returns the commands (reports) it gives.
@@ -576,3 +597,19 @@ class MissionStepper:
         return [Report(Level.WARN, f'mission resumed at step {self.steps}: the robot is '
                        f'{planar_distance(pose, saved):.3f} m from where the state file puts '
                        'it')]
+
+
+def pending_from_snapshot(pending, step, now, outcome_timeout):
+    """The gait in flight that a snapshot saved (its ``pending``), as a
+    :class:`~sela_ros.core.mission.stepper_io.PendingStep` waiting for its outcome from ``now``."""
+    d = Decision(index=int(pending['index']), waypoint=np.array(pending['waypoint']),
+                 predicted_gr=np.array(pending['predicted_gr']),
+                 predicted_pose=np.array(pending['predicted_pose']),
+                 reward=float(pending['reward']), sigma=float(pending['sigma']))
+    return PendingStep(step=step, pose=np.array(pending['pose']), t_start=now,
+                       deadline=now + outcome_timeout, waypoint=d.waypoint, decision=d,
+                       behavior_id=int(pending['id']), t_sent=now)
+
+
+def _list(values):
+    return np.asarray(values, dtype=float).tolist()

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sela_ros.core.gp import CandidateSetGP
+from sela_ros.core.learning.gp import CandidateSetGP
 
 #: Risk accepted by default: gaits predicted to fall more often than this are never tried.
 #: Below it, SELA's ``fall.risk.cost`` weighs the risk against the progress (docs/notebook.md).
@@ -82,7 +82,7 @@ class FallRisk:
         prior: ``(M,)`` prior fall rate per gait in ``[0, 1]``; None: zeros (intact map).
         sigma, variance, noise: kernel parameters (those of the generic-reward GPs).
         stability: ``(M,)`` a feature of each gait that makes falls less likely (the 8-D
-            map's support, :attr:`~sela_ros.core.archive.Archive.stability`); None: every
+            map's support, :attr:`~sela_ros.core.storage.Archive.stability`); None: every
             untried gait has the robot's fall rate so far.
     """
 

@@ -1,4 +1,5 @@
-"""The behaviour-performance map ("archive") SELA consumes: atomic save, validated load.
+"""The behaviour-performance map ("archive") SELA consumes: atomic save, validated load, and
+where the shipped archives live.
 
 An :class:`Archive` is what MAP-Elites leaves behind (see :mod:`sela_ros.qd.map_elites`): for
 each of its ``M`` elites the 36 controller parameters, the raw behaviour descriptor, the
@@ -27,9 +28,9 @@ from typing import Any
 import numpy as np
 
 from sela_ros.core import N_PARAMS
-from sela_ros.core.npz_files import NpzTooLarge, check_npz_size
-from sela_ros.core.persistence import atomic_write
-from sela_ros.core.plausibility import ImplausibleOutcome, check_generic_rewards
+from sela_ros.core.storage.npz_files import NpzTooLarge, check_npz_size
+from sela_ros.core.storage.persistence import atomic_write
+from sela_ros.core.validation import ImplausibleOutcome, check_generic_rewards
 
 #: Version of the on-disk layout; bump it when keys or meanings change.
 ARCHIVE_FORMAT_VERSION = 1
@@ -187,7 +188,7 @@ class Archive:
     @property
     def stability(self) -> np.ndarray | None:
         """``(M,)`` what makes each gait less likely to tip a damaged robot over, for the
-        fall model (:class:`~sela_ros.core.fall_risk.FallRisk`): on a map whose descriptor
+        fall model (:class:`~sela_ros.core.learning.FallRisk`): on a map whose descriptor
         holds the six duty factors, the gait's support (their sum, the mean number of feet
         on the ground); None for other maps."""
         if self.metadata.get('descriptor_name') != DUTY_FACTOR_DESCRIPTOR \
@@ -397,3 +398,28 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
     if expected_settings is not None:
         check_settings(metadata, expected_settings, source=str(path))
     return archive
+
+
+#: The archives shipped inside the package (``sela_ros/data``), by short name: the default is
+#: the paper's 8-D map (final x, y + six duty factors); ``2d`` is the first, 2-D map (final
+#: x, y), kept to compare with (docs/archive.md).
+SHIPPED_ARCHIVES = {'8d': 'hexapod_archive.npz', '2d': 'hexapod_archive_2d.npz'}
+
+
+def default_archive_path() -> Path:
+    """Path of the archive shipped inside the installed package (``sela_ros/data``)."""
+    return shipped_archive_path('8d')
+
+
+def resolve_archive_path(value: str) -> str:
+    """An ``archive`` parameter's value as a path: '' is the default shipped archive, ``8d``
+    and ``2d`` the shipped ones by name, anything else a path as given."""
+    value = (value or '').strip() or '8d'
+    return str(shipped_archive_path(value)) if value in SHIPPED_ARCHIVES else value
+
+
+def shipped_archive_path(name: str) -> Path:
+    """Path of a shipped archive by short name (:data:`SHIPPED_ARCHIVES`)."""
+    if name not in SHIPPED_ARCHIVES:
+        raise ArchiveError(f'no shipped archive {name!r}; shipped: {sorted(SHIPPED_ARCHIVES)}')
+    return Path(__file__).resolve().parents[2] / 'data' / SHIPPED_ARCHIVES[name]
