@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RANKS = {'sela_ros.core': 0, 'sim_bridge.robot': 1, 'sela_ros.qd': 2,
          'sela_ros.experiments': 3, 'sela_ros.nodes': 3, 'sim_bridge.node': 4,
          'sela_ros.tools': 5, 'sela_ros': 6}
-# Besides numpy/scipy, two file-format readers for the map loader (core/maps.py): pyyaml
+# Besides numpy/scipy, two file-format readers for the map loader (core/planning/maps.py): pyyaml
 # for map YAML files and Pillow (which matplotlib brings) for PNG maps. Never ROS.
 CORE_MAY_IMPORT = {'numpy', 'scipy', 'sela_ros', 'yaml', 'PIL'}
 # The core's subpackages, bottom up; its root (N_PARAMS, geometry) is under them all.
