@@ -190,13 +190,13 @@ class SelaAdapter(Node):
         """Take back what the state file holds; an unusable file is set aside with the
         reason."""
         path = self.store.path
-        restored = []
+        restored = {}
 
         def restore(state):
-            # Into a fresh stepper, swapped in only once all of it came back.
+            # Into a fresh stepper, swapped in below only once all of it came back.
             stepper = adapter_support.new_stepper(self.values, self.archive, self.priors)
-            restored.extend(stepper.restore(state, self.now()))
-            self.stepper = stepper
+            restored['commands'] = stepper.restore(state, self.now())
+            restored['stepper'] = stepper
 
         limits = OutcomeLimits(self.stepper.config.max_displacement)
         state, problem = persistence.resume_state(path, len(self.archive), restore,
@@ -204,8 +204,9 @@ class SelaAdapter(Node):
         if problem:
             self.report(io.Level.ERROR, problem)
             return
-        self._dispatch(restored)
         if state is not None:
+            self.stepper = restored['stepper']
+            self._dispatch(restored['commands'])
             mode = 'adapting' if self.stepper.logic.adapting else 'trusting the map'
             self.get_logger().warn(f'resumed from {path}: '
                                    f'{len(self.stepper.sela.observations[0])} '

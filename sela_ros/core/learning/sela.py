@@ -176,6 +176,12 @@ class SELA:
         # the mixture of the tables.
         self._prior_scores = {'table': 0.0, 'mixture': 0.0}
 
+    def forget_learning(self) -> None:
+        """Back to the intact map: every observation forgotten, also what restarts set aside
+        (what was learnt about falls stays, as in :meth:`reset_learning`)."""
+        self.reset_learning()
+        self.set_aside_learning = []
+
     def set_aside(self, reason, keep_from=None) -> int:
         """Start learning afresh without losing what was learned: the observations before
         ``keep_from`` (all of them with None) are set aside with ``reason`` (kept in

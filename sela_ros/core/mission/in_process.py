@@ -156,11 +156,8 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             if len(stepper.logic.records) == learnt:  # the stepper refused the outcome
                 raise RuntimeError(f'outcome of command {command.behavior_id} refused: '
                                    'the environment reported an implausible step')
-            record = stepper.logic.records[-1]
-            if detect:
-                record.error = verdict.error
             if on_step is not None:
-                on_step(record)
+                on_step(stepper.logic.records[-1])
     if end is None:  # the stepper stopped without a result: a bug, said as one
         raise RuntimeError(f'the mission stopped in state {stepper.state.value} without a '
                            'result')

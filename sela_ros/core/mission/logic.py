@@ -121,6 +121,12 @@ class MissionLogic:
         self.records.append(record)
         return record
 
+    def judged(self, error):
+        """The detector's verdict on the latest step: its prediction error (m), for the
+        record."""
+        if self.records:
+            self.records[-1].error = error
+
     def prediction_sigma(self, decision):
         """How unsure the prediction of ``decision`` is: 0 while the map is trusted."""
         return float(decision.sigma) if self.adapting else 0.0
@@ -175,7 +181,6 @@ class MissionLogic:
     def forget(self, adapt_on_start):
         """Back to the intact map: every observation forgotten, also what restarts set
         aside (a user's request; after it another archive may be loaded)."""
-        self.sela.reset_learning()
-        self.sela.set_aside_learning = []
+        self.sela.forget_learning()
         self.adapting = bool(adapt_on_start)
         self.last = None

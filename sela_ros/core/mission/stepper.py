@@ -299,6 +299,7 @@ class MissionStepper:
     def _verdict(self, event):
         self.last_id = None  # judged: a replay of this verdict changes nothing
         self.state = State.READY
+        self.logic.judged(event.error)
         if not event.fire:
             return []
         message, out = self._adapt()
