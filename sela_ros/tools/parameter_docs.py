@@ -2,7 +2,7 @@
 
     .venv/bin/python -m sela_ros.tools.parameter_docs > docs/parameters.md
 
-``test/test_parameter_docs.py`` checks that the file is what this writes, and that
+``test/nodes/test_parameter_docs.py`` checks that the file is what this writes, and that
 ``config/sela.yaml`` gives every parameter the default the code has.
 """
 import sys

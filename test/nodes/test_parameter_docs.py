@@ -7,7 +7,7 @@ import yaml
 
 from sela_ros.tools.parameter_docs import markdown, node_parameters
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _yaml():

@@ -15,7 +15,7 @@ from sim_bridge.evaluation import evaluate_gait
 from sim_bridge.experiment_env import HexapodEnvironment, chained_runs, oracle_table
 from sim_bridge.settings import simulator_settings
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def tiny_archive(path, n=8, seed=0):

@@ -16,7 +16,7 @@ from ros_graph import Client, NodeProcesses
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
-MAPS = Path(__file__).resolve().parents[1] / 'config' / 'maps'
+MAPS = Path(__file__).resolve().parents[2] / 'config' / 'maps'
 # A gait takes about 0.15 s of CPU; the maze takes about 50 of them, and the machine is
 # shared: the limits only catch a mission that is stuck, never a slow one.
 MISSION_TIMEOUT = 1500

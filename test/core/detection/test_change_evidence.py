@@ -176,7 +176,7 @@ def test_forty_goals_on_a_robot_whose_damage_never_changes_restart_nothing():
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'benchmarks'))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[3] / 'benchmarks'))
     from bench_restarts import false_restarts
 
     # The map trusted until the detector fires: then it keeps judging while adapting.

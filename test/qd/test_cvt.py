@@ -18,7 +18,7 @@ from sela_ros.qd.cvt import XY_DUTY_BOUNDS, CVTMapElites, disc_samples, make_cen
 from sela_ros.qd.evaluators import EvaluationResult, SyntheticEvaluator
 from sela_ros.qd.executors import SerialEvaluator
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 EIGHT_D = SyntheticEvaluator(descriptor='final_xy_duty_factors')
 # The synthetic (x, y) spans [-1, 1]^2: bounds that cover it.
 BOUNDS = ((-1.0, 1.0), (-1.0, 1.0)) + ((0.0, 1.0),) * 6

@@ -1,5 +1,6 @@
-"""``ros2 param dump`` works on every node: no parameter name nests inside another, and the
-YAML a dump writes loads back with ``--params-file`` to the same values.
+"""``ros2 param dump`` works on every node: the YAML a dump writes loads back with
+``--params-file`` to the same values (that no name nests inside another:
+nodes/test_param_names.py).
 
 The dump is built the way ros2param builds it: ``list_parameters`` then ``get_parameters``
 over the node's parameter services, each dotted name split into nested mappings under
@@ -10,12 +11,13 @@ import yaml
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.parameter import parameter_value_to_python
 
-from sela_ros.nodes.params import Spec, nesting_conflicts, take_renamed
 from sela_ros.tools.parameter_docs import node_parameters
 
 from ros_graph import Client, NodeProcesses
 
 SPECS = node_parameters()  # every node's specs, as docs/parameters.md lists them
+
+
 # Start-up values other than config/sela.yaml's, so that a dump that did not load back shows.
 # The adapter's are given under their earlier names: read as the new ones.
 CHANGED = {
@@ -24,45 +26,14 @@ CHANGED = {
     'damage_detector': {'detection.threshold': 0.2, 'heartbeat.nodes': '[planner]'},
     'sela_adapter': {'priors': 'none', 'priors.max.misfit': 0.5, 'goal.eps': 0.15},
 }
+
+
 EXPECTED = {
     'sim_bridge': {'seed': 7, 'observation.noise_std': 0.02, 'right_on_fall': True},
     'planner': {'planner.inflation': 0.2, 'map.obstacles': [0.8, 0.8, 1.2, 1.2]},
     'damage_detector': {'detection.threshold': 0.2, 'heartbeat.nodes': ['planner']},
     'sela_adapter': {'priors.tables': 'none', 'priors.max_misfit': 0.5, 'goal.eps': 0.15},
 }
-
-
-@pytest.mark.parametrize('node', sorted(SPECS))
-def test_no_parameter_name_is_a_prefix_of_another(node):
-    names = [spec.name for spec in SPECS[node]] + ['use_sim_time']
-    assert len(set(names)) == len(names)
-    assert nesting_conflicts(names) == []
-
-
-def test_nesting_conflicts_are_found_segment_by_segment():
-    assert nesting_conflicts(['priors', 'priors.max.misfit', 'priors.max.misfit.reproduced',
-                              'priors_x', 'gp.noise']) == [
-        ('priors', 'priors.max.misfit'), ('priors', 'priors.max.misfit.reproduced'),
-        ('priors.max.misfit', 'priors.max.misfit.reproduced')]
-    assert nesting_conflicts(['map.file', 'map.file_x', 'map']) == [
-        ('map', 'map.file'), ('map', 'map.file_x')]
-
-
-def test_an_earlier_name_is_read_as_the_new_one_with_a_warning():
-    from rclpy.parameter import Parameter
-
-    specs = [Spec('priors.tables', 'auto', '', renamed_from='priors'),
-             Spec('priors.max_misfit', 0.6, '', renamed_from='priors.max.misfit')]
-    overrides = {'priors': Parameter('priors', value='none'),
-                 'priors.max.misfit': Parameter('priors.max.misfit', value=0.4),
-                 'priors.max_misfit': Parameter('priors.max_misfit', value=0.5)}
-    said = []
-    take_renamed(overrides, specs, said.append)
-    assert set(overrides) == {'priors.tables', 'priors.max_misfit'}
-    assert overrides['priors.tables'].value == 'none'
-    # The earlier name wins: only a user's own file still says it, over the shipped one.
-    assert overrides['priors.max_misfit'].value == 0.4
-    assert len(said) == 2 and all('is now' in s for s in said)
 
 
 def nest(tree, name, value):

@@ -7,7 +7,7 @@ import pytest
 
 from sim_bridge.damage import parse_damage
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope='module')

@@ -16,7 +16,7 @@ from sela_ros.qd.executors import DaskEvaluator, ProcessPoolEvaluator, SerialEva
 from sela_ros.qd.grid_archive import GridArchive
 from sela_ros.qd.map_elites import MapElites, default_run
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_grid_rejects_bad_shapes():

@@ -44,7 +44,7 @@ def test_bad_arguments_exit_2_without_traceback(args, tmp_path):
     proc = subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', *args],
                           capture_output=True, text=True, cwd=tmp_path, timeout=120,
                           env={'PYTHONPATH': str(__import__('pathlib').Path(__file__)
-                                                 .resolve().parents[1])})
+                                                 .resolve().parents[2])})
     assert proc.returncode == 2
     assert 'usage:' in proc.stderr and 'Traceback' not in proc.stderr
 

@@ -20,7 +20,7 @@ from ros_graph import Client, NodeProcesses
 
 pytestmark = [pytest.mark.dds]
 
-MAPS = Path(__file__).resolve().parents[1] / 'config' / 'maps'
+MAPS = Path(__file__).resolve().parents[2] / 'config' / 'maps'
 
 
 class PlannerWatch:
