@@ -26,12 +26,12 @@ def bench_overhead(n=20000, batch=200):
     run.run(n, progress=False)
     seconds = time.perf_counter() - start
     print(f'synthetic MAP-Elites (ask + evaluate + tell): {n / seconds:,.0f} evals/s, '
-          f'{run.archive.num_elites} cells filled')
+          f'{run.archive.stats.num_elites} cells filled')
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        run.save_checkpoint(os.path.join(tmp, 'ck.npz'))
+        run.save_checkpoint(os.path.join(tmp, 'ck.pkl'))
         print(f'checkpoint of a 100x100 grid: {time.perf_counter() - start:.3f} s, '
-              f'{os.path.getsize(os.path.join(tmp, "ck.npz")) / 1e6:.2f} MB')
+              f'{os.path.getsize(os.path.join(tmp, "ck.pkl")) / 1e6:.2f} MB')
 
 
 def bench_hexapod(gaits, workers):

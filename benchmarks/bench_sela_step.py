@@ -48,7 +48,24 @@ def bench_step(num_candidates, observations=20, dim=8, repeats=15, seed=0):
     return float(np.median(times)), float(np.min(times)), sela.gp.num_samples
 
 
-def bench_shipped(observations=20, repeats=15, seed=0, mixed=False):
+def library_like(priors, count, seed=0):
+    """``count`` tables made from the shipped ones (each a random mix of two, perturbed), for
+    timing SELA with a library of that size before it is built."""
+    from sela_ros.core.learning import DamagePriors
+
+    rng = np.random.default_rng(seed)
+    gr, fallen = priors.generic_reward, priors.fallen
+    tables, falls = [], []
+    for _ in range(count):
+        i, j = rng.choice(len(priors), 2, replace=False)
+        w = rng.random()
+        tables.append(w * gr[i] + (1 - w) * gr[j] + 0.01 * rng.normal(size=gr[i].shape))
+        falls.append(fallen[i] | fallen[j])
+    return DamagePriors(tuple(f'synthetic:{k}' for k in range(count)), np.stack(tables),
+                        np.stack(falls), priors.archive_checksum)
+
+
+def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
@@ -59,13 +76,19 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False):
     from sela_ros.core.storage import default_archive_path, load_archive
 
     archive = load_archive(default_archive_path())
-    priors = resolve_priors('auto', default_archive_path(), archive.params)
-    true = priors.generic_reward[priors.names.index('remove:middle_right')]
+    shipped = resolve_priors('auto', default_archive_path(), archive.params)
+    true = shipped.generic_reward[shipped.names.index('remove:middle_right')]
     if mixed:
-        other = priors.generic_reward[priors.names.index('remove:front_left')]
+        other = shipped.generic_reward[shipped.names.index('remove:front_left')]
         true = true + other - archive.generic_reward
-    # One table chosen (priors.weights.sd 0), or the tables mixed (the default).
-    sela = make_sela(archive, None if mixed else {'priors.weights.sd': 0.0}, priors=priors)
+    if priors is None:
+        priors = shipped
+    elif isinstance(priors, int):
+        priors = library_like(shipped, priors, seed)
+    else:
+        priors = resolve_priors(priors, default_archive_path(), archive.params)
+    # One table chosen (priors.weights.sd none), or the tables mixed (the default).
+    sela = make_sela(archive, None if mixed else {'priors.weights.sd': 'none'}, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
     pose = np.zeros(3)
@@ -88,6 +111,11 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument('--toy-replicates', type=int, default=10)
     parser.add_argument('--max-candidates', type=float, default=1e6)
+    parser.add_argument('--library', default=None,
+                        help='also time a step with these damage priors (a library file)')
+    parser.add_argument('--tables', type=int, default=84,
+                        help='also time a step with this many tables made from the shipped '
+                             'ones (a library of that size; 0: not)')
     args = parser.parse_args()
     print('SELA step (ask + tell + fall model, 8-D descriptors, 2 GR dims):')
     for m in (1e3, 1e4, 2e4, 1e5, 1e6):
@@ -105,6 +133,15 @@ def main():
     print(f'  the same, the tables mixed on a damage two of them add up to (prior in use: '
           f'{prior}): median '
           f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms)')
+    for label, priors in ((f'{args.tables} tables like a library\'s', args.tables),
+                          (args.library, args.library)):
+        if not priors:
+            continue
+        for mixed in (False, True):
+            t, t_min, gaits, prior, horizon = bench_shipped(mixed=mixed, priors=priors)
+            print(f'  the same with {label}, {"mixed" if mixed else "one table"} (prior in '
+                  f'use: {prior}): median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms '
+                  '(target < 20 ms)')
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
         subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', 'toy',

@@ -2,24 +2,29 @@
 """Build a library of damage priors that spans the damage space, resumably, in bounded time.
 
 The shipped damage priors (``make priors``) are six single-leg removals, every gait of the
-map each. This library covers the kinds a robot meets (legs removed, alone and in pairs; legs
-shortened at several lengths; joints blocked at several angles), each condition evaluated on
-a subset of the map's gaits chosen to cover its behaviour space (farthest-point sampling over
-the normalised descriptors), the other gaits inferred by a GP over the same descriptors
-(prior mean: the intact map; what is learnt: each condition's deviation from it, and its
-falls). The result is a damage-priors file (``DamagePriors``) that SELA mixes
-(``sela_ros.core.learning.prior_mixture``) or chooses from, as ``priors: <path>``.
+map each. This library covers the kinds a robot meets (legs removed, alone and in pairs;
+legs shortened at several lengths; joints blocked at several angles; motors gone limp), each
+condition evaluated on a subset of the map's gaits: 2,000 chosen to cover its behaviour
+space (farthest-point sampling over the normalised descriptors), then the gaits that take
+the intact robot farthest, which are the ones SELA picks most (a mission wants long steps
+toward its waypoint: docs/priors_combination.md); the other gaits inferred by a GP over the
+same descriptors (prior mean: the intact map; what is learnt: each condition's deviation
+from it, and its falls). The single legs removed are not built: their whole tables ship
+beside the map (``make priors``) and the library takes them from there. The result is a
+damage-priors file (``DamagePriors``) that SELA mixes (``sela_ros.core.learning.prior_mixture``) or
+chooses from, as ``priors.tables: <path>``.
 
     .venv/bin/python scripts/build_library.py --plan              # conditions, cost, size
-    nice -n 15 .venv/bin/python scripts/build_library.py --workers 2 --out /work/library
-    .venv/bin/python scripts/build_library.py --assemble --out /work/library \\
+    nice -n 15 .venv/bin/python scripts/build_library.py --workers 2
+    .venv/bin/python scripts/build_library.py --assemble \\
         --library sela_ros/data/hexapod_archive_library.npz
 
 Resumable after any interruption, on this machine or another: every ``--chunk`` gaits of a
 condition are written atomically to ``--out`` (``<condition>/<first gait>.npz``) and a run
 skips the chunks already there; the gait subset is a deterministic function of the archive
-and ``--gaits``, so another machine with the same archive resumes the same plan (copy
-``--out`` across). ``--assemble`` needs every chunk, and only reads them.
+and ``--gaits``, so another machine with the same archive resumes the same plan (the
+default ``--out`` is in the repository: commit it, or copy it across). ``--assemble`` needs
+every chunk (``--partial``: what there is), and only reads them.
 """
 from __future__ import annotations
 
@@ -32,16 +37,22 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 
 LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right', 'rear_right')
 SHORTEN_FACTORS = (0.3, 0.6, 0.8)
 BLOCKED = (('knee', -0.4), ('knee', 0.0), ('knee', 0.4), ('hip_pitch', -0.3),
            ('hip_pitch', 0.3))
-#: One gait from a standing start on one core, seconds: the shipped tables took 14-21
-#: minutes for 12,442 gaits (0.07-0.10 s); the plan counts the upper end.
-SECONDS_PER_GAIT = 0.1
-DEFAULT_GAITS = 2000
+#: Motors weakened: the hip pitch limp (the motors have torque to spare: at 0.3 of it the
+#: fastest gaits move as on the intact robot; docs/hexapod.md).
+WEAKENED = (('hip_pitch', 0.0),)
+#: One gait from a standing start on one core, seconds: 0.04 measured by this build on a
+#: loaded 2-core machine (100-gait chunks in 4-7 s); the plan counts 0.05.
+SECONDS_PER_GAIT = 0.05
+DEFAULT_GAITS = 4000
+#: The first gaits of the subset cover the behaviour space; the rest are the fastest.
+COVERING_GAITS = 2000
 DEFAULT_CHUNK = 100
 BUDGET_CORE_HOURS = 6.0
 
@@ -52,30 +63,48 @@ def conditions():
     out = [f'remove:{leg}' for leg in LEGS]
     out += [f'shorten:{leg}:{f}' for leg in LEGS for f in SHORTEN_FACTORS]
     out += [f'block:{leg}.{joint}={a}' for leg in LEGS for joint, a in BLOCKED]
+    out += [f'weaken:{leg}.{joint}={s}' for leg in LEGS for joint, s in WEAKENED]
     out += [f'remove:{a},remove:{b}' for a, b in itertools.combinations(LEGS, 2)]
     # Two legs shortened on one side or across, at the middle length.
     out += [f'shorten:{a}:0.6,shorten:{b}:0.6' for a, b in itertools.combinations(LEGS, 2)]
     return out
 
 
-def gait_subset(descriptors, count, first=0):
-    """``count`` gait indices that cover the descriptors: farthest-point sampling from gait
-    ``first`` (deterministic), so that every gait is near an evaluated one."""
+def gait_subset(descriptors, count, speed=None, covering=COVERING_GAITS, first=0):
+    """``count`` gait indices, deterministic (a build resumes the same plan): the first
+    ``covering`` cover the descriptors (farthest-point sampling from gait ``first``, so that
+    every gait is near an evaluated one), then, with ``speed`` (each gait's distance on the
+    intact robot), the fastest gaits not chosen yet."""
     descriptors = np.asarray(descriptors, dtype=float)
     count = min(int(count), len(descriptors))
+    spread = count if speed is None else min(count, int(covering))
     chosen = [int(first)]
     gap = np.sum((descriptors - descriptors[first]) ** 2, axis=1)
-    for _ in range(count - 1):
+    for _ in range(spread - 1):
         nxt = int(np.argmax(gap))
         chosen.append(nxt)
         np.minimum(gap, np.sum((descriptors - descriptors[nxt]) ** 2, axis=1), out=gap)
+    if count > spread:
+        taken = np.zeros(len(descriptors), bool)
+        taken[chosen] = True
+        fastest = [int(g) for g in np.argsort(-np.asarray(speed), kind='stable')
+                   if not taken[g]]
+        chosen += fastest[:count - spread]
     return np.array(chosen, dtype=int)
 
 
-def plan(num_gaits, gaits):
-    """``(conditions, evaluations, core-hours, MB on disk)`` of a build."""
+def archive_subset(archive, count):
+    """The gaits a build evaluates on ``archive``: :func:`gait_subset` with the intact
+    robot's distances."""
+    gr = archive.generic_reward
+    return gait_subset(archive.normalised_descriptors(), count, np.hypot(gr[:, 0], gr[:, 1]))
+
+
+def plan(num_gaits, gaits, shipped=()):
+    """``(conditions, evaluations, core-hours, MB on disk)`` of a build; the conditions in
+    ``shipped`` (whole tables beside the map) cost nothing."""
     names = conditions()
-    evaluations = len(names) * min(gaits, num_gaits)
+    evaluations = sum(n not in shipped for n in names) * min(gaits, num_gaits)
     hours = evaluations * SECONDS_PER_GAIT / 3600.0
     # The assembled file: float32 (dx, dy, dyaw) and a fall flag per gait and condition,
     # compressed about as the shipped priors (0.85 MB for 6 x 12,442 gaits).
@@ -100,15 +129,16 @@ def _evaluate(job):
     return spec, gaits, gr, fallen
 
 
-def build(archive, out, gaits, chunk, workers, only=None):
-    """Evaluate every chunk not on disk yet; returns how many were evaluated now."""
+def build(archive, out, gaits, chunk, workers, only=None, skip=()):
+    """Evaluate every chunk not on disk yet (conditions in ``skip`` not at all: their whole
+    table ships); returns how many were evaluated now."""
     from sela_ros.core.storage import atomic_write
 
-    subset = gait_subset(archive.normalised_descriptors(), gaits)
+    subset = archive_subset(archive, gaits)
     settings = archive.simulator_settings
     jobs = []
     for spec in conditions():
-        if only and spec not in only:
+        if (only and spec not in only) or spec in skip:
             continue
         for start in range(0, len(subset), chunk):
             path = Path(out) / _slug(spec) / f'{start:06d}.npz'
@@ -123,8 +153,10 @@ def build(archive, out, gaits, chunk, workers, only=None):
         first = int(np.flatnonzero(subset == part[0])[0])
         atomic_write(Path(out) / _slug(spec) / f'{first:06d}.npz', lambda h: np.savez(
             h, gaits=part, generic_reward=gr, fallen=fallen, damage=np.array(spec)))
+        spent = time.perf_counter() - begin
         print(f'[{n}/{len(jobs)}] {spec} gaits {first}-{first + len(part) - 1} '
-              f'({time.perf_counter() - begin:.0f} s)', flush=True)
+              f'({spent:.0f} s, about {spent / n * (len(jobs) - n) / 60:.0f} min left)',
+              flush=True)
 
     if workers <= 1:
         for n, job in enumerate(jobs, 1):
@@ -160,35 +192,86 @@ def infer(descriptors, base, gaits, gr, fallen, sigma, noise_ratio=0.1, rows=200
     return out_gr, out_fallen
 
 
-def assemble(archive, out, gaits, library, only=None):
+def check_inference(archive, shipped, gaits):
+    """How well the gaits a build does not evaluate are inferred: each whole shipped table
+    inferred from its own gaits of the plan, the error on the others printed against the
+    intact map's (rms of dx, dy in m and dyaw in rad; fall flags right)."""
+    subset = archive_subset(archive, gaits)
+    rest = np.setdiff1d(np.arange(len(archive)), subset)
+    descriptors = archive.normalised_descriptors()
+    for i, name in enumerate(shipped.names):
+        truth, falls = shipped.generic_reward[i], shipped.fallen[i]
+        gr, fallen = infer(descriptors, archive.generic_reward, subset, truth[subset],
+                           falls[subset], archive.kernel_sigma)
+        inferred = np.sqrt(np.mean((gr[rest] - truth[rest]) ** 2, axis=0))
+        intact = np.sqrt(np.mean((archive.generic_reward[rest] - truth[rest]) ** 2, axis=0))
+        print(f'{name}: {len(rest)} gaits inferred from {len(subset)}: rms error '
+              f'{np.array2string(inferred, precision=3)} (intact map '
+              f'{np.array2string(intact, precision=3)}), falls right '
+              f'{np.mean(fallen[rest] == falls[rest]):.1%}', flush=True)
+
+
+def _evaluated(out, spec):
+    """``(gaits, generic rewards, fallen)`` of every chunk of ``spec`` on disk."""
+    data = [np.load(p) for p in sorted((Path(out) / _slug(spec)).glob('*.npz'))]
+    if not data:
+        return np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, bool)
+    return tuple(np.concatenate([d[key] for d in data])
+                 for key in ('gaits', 'generic_reward', 'fallen'))
+
+
+def assemble(archive, out, gaits, library, shipped=None, only=None, partial=False):
+    """Write the library: every condition's table, the gaits not evaluated inferred. A
+    condition whose whole table ships (``shipped``, the map's own damage priors) is taken
+    from there, chained runs included. ``partial``: conditions with only part of their gaits
+    evaluated are inferred from those, conditions with none are left out (both listed)."""
     from sela_ros.core.learning import DamagePriors, params_checksum
 
-    subset = gait_subset(archive.normalised_descriptors(), gaits)
+    planned = len(archive_subset(archive, gaits))
     descriptors = archive.normalised_descriptors()
-    names, tables, falls = [], [], []
+    shipped_names = tuple(shipped.names) if shipped is not None else ()
+    names, tables, falls, runs, chained_falls, short, missing = [], [], [], [], [], [], []
     for spec in conditions():
         if only and spec not in only:
             continue
-        parts = sorted((Path(out) / _slug(spec)).glob('*.npz'))
-        if not parts:
-            raise SystemExit(f'{spec}: no chunk in {out}; run the build first')
-        data = [np.load(p) for p in parts]
-        done = np.concatenate([d['gaits'] for d in data])
-        if len(done) != len(subset):
-            raise SystemExit(f'{spec}: {len(done)} of {len(subset)} gaits evaluated; resume '
-                             'the build first')
-        gr, fallen = infer(descriptors, archive.generic_reward, done,
-                           np.concatenate([d['generic_reward'] for d in data]),
-                           np.concatenate([d['fallen'] for d in data]), archive.kernel_sigma)
+        if spec in shipped_names:
+            i = shipped_names.index(spec)
+            gr, fallen = shipped.generic_reward[i], shipped.fallen[i]
+            gaits_run, gaits_fell = shipped.chained(i)[0], shipped.chained(i)
+            row_runs = np.zeros(len(archive), int)
+            row_falls = np.zeros(len(archive), int)
+            row_runs[gaits_run] = gaits_fell[1]
+            row_falls[gaits_run] = gaits_fell[2]
+        else:
+            done, done_gr, done_fallen = _evaluated(out, spec)
+            if len(done) < planned and not partial:
+                raise SystemExit(f'{spec}: {len(done)} of {planned} gaits evaluated; resume '
+                                 'the build first (or --partial)')
+            if not len(done):
+                missing.append(spec)
+                continue
+            if len(done) < planned:
+                short.append(f'{spec} ({len(done)})')
+            gr, fallen = infer(descriptors, archive.generic_reward, done, done_gr,
+                               done_fallen, archive.kernel_sigma)
+            row_runs = row_falls = np.zeros(len(archive), int)
         names.append(spec)
         tables.append(gr)
         falls.append(fallen)
+        runs.append(row_runs)
+        chained_falls.append(row_falls)
     DamagePriors(tuple(names), np.stack(tables), np.stack(falls),
-                 params_checksum(archive.params)).save(library)
+                 params_checksum(archive.params), np.stack(runs),
+                 np.stack(chained_falls)).save(library)
     print(f'{library}: {len(names)} conditions, {Path(library).stat().st_size / 1e6:.1f} MB')
+    if short:
+        print(f'  inferred from fewer than {planned} gaits: {", ".join(short)}')
+    if missing:
+        print(f'  left out, nothing evaluated: {", ".join(missing)}')
 
 
 def main(argv=None):
+    from sela_ros.core.learning import resolve_priors
     from sela_ros.core.storage import load_archive, resolve_archive_path
 
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -198,33 +281,49 @@ def main(argv=None):
     parser.add_argument('--chunk', type=int, default=DEFAULT_CHUNK,
                         help='gaits per checkpointed chunk (default %(default)s)')
     parser.add_argument('--workers', type=int, default=1)
-    parser.add_argument('--out', default='library_build', help='checkpoint directory')
+    parser.add_argument('--out', default=str(ROOT / 'mapbuild' / 'library'),
+                        help='checkpoint directory (default: the repository\'s '
+                             'mapbuild/library, committed so that a build resumes anywhere)')
     parser.add_argument('--only', default=None,
                         help="';'-separated conditions to build (default: all)")
     parser.add_argument('--plan', action='store_true', help='print the plan, build nothing')
     parser.add_argument('--assemble', action='store_true',
                         help='infer the gaits not evaluated and write --library')
     parser.add_argument('--library', default=None, help='the assembled damage-priors file')
+    parser.add_argument('--check-inference', action='store_true',
+                        help='infer the shipped tables from the gaits of the plan and print '
+                             'the error on the others')
+    parser.add_argument('--partial', action='store_true',
+                        help='assemble what is evaluated so far (conditions listed)')
     args = parser.parse_args(argv)
-    archive = load_archive(resolve_archive_path(args.archive))
-    names, evaluations, hours, megabytes = plan(len(archive), args.gaits)
-    print(f'{len(names)} conditions x {min(args.gaits, len(archive))} gaits = {evaluations} '
+    path = resolve_archive_path(args.archive)
+    archive = load_archive(path)
+    shipped = resolve_priors('auto', path, archive.params)
+    skip = tuple(shipped.names) if shipped is not None else ()
+    names, evaluations, hours, megabytes = plan(len(archive), args.gaits, skip)
+    print(f'{len(names)} conditions ({len(names) - len(set(skip) & set(names))} to build, the '
+          f'others ship whole) x {min(args.gaits, len(archive))} gaits = {evaluations} '
           f'evaluations, about {hours:.1f} core-hours at {SECONDS_PER_GAIT} s per gait '
           f'(budget {BUDGET_CORE_HOURS:g}), about {megabytes:.1f} MB assembled')
     if args.plan:
-        for kind in ('remove', 'shorten', 'block'):
+        for kind in ('remove', 'shorten', 'block', 'weaken'):
             picked = [n for n in names if n.startswith(kind)]
             print(f'  {kind}: {len(picked)} ({", ".join(picked[:3])}, ...)')
         return
     if hours > BUDGET_CORE_HOURS and args.only is None:
         print(f'warning: over the {BUDGET_CORE_HOURS:g} core-hour budget', file=sys.stderr)
     only = set(args.only.split(';')) if args.only else None
+    if args.check_inference:
+        if shipped is None:
+            parser.error(f'no damage priors beside {path} to check against')
+        check_inference(archive, shipped, args.gaits)
+        return
     if args.assemble:
         if not args.library:
             parser.error('--assemble needs --library')
-        assemble(archive, args.out, args.gaits, args.library, only)
+        assemble(archive, args.out, args.gaits, args.library, shipped, only, args.partial)
         return
-    build(archive, args.out, args.gaits, args.chunk, args.workers, only)
+    build(archive, args.out, args.gaits, args.chunk, args.workers, only, skip)
 
 
 if __name__ == '__main__':

@@ -5,9 +5,12 @@ Every run is :func:`sela_ros.core.mission.run_mission`, the in-process driver of
 start, position observations with noise, the damage detector, the straight-line reward
 selection layer, a fallen robot righted where it lies. Methods:
 
-* ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` 0);
+* ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` none);
 * ``mixture``: the tables mixed by weights fitted to the steps (``priors.weights.sd`` 1);
-* ``none``: the intact map only (``--priors none``).
+* ``none``: the intact map only (``--priors none``);
+* ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
+  library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
+  measured with its own condition and the conditions near it left out (:func:`leave_out`).
 
 Damages are foreseen (their table ships beside the map) or not (``/own-left-out``: the single
 leg with its own table removed from the priors; every other damage is in no table). The
@@ -47,8 +50,15 @@ UNFORESEEN = tuple((f'remove:{leg}/own-left-out', f'remove:{leg}', True)
 FORESEEN = tuple((f'remove:{leg}', f'remove:{leg}', False)
                  for leg in ('middle_right', 'front_left', 'rear_right'))
 GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
-METHODS = {'select': {'priors.weights.sd': 0.0}, 'mixture': {'priors.weights.sd': 1.0},
-           'none': None}
+METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.sd': 1.0},
+           'none': None, 'library-select': {'priors.weights.sd': 'none'},
+           'library': {'priors.weights.sd': 1.0}}
+#: Methods that take their tables from ``--library``, each damage with its own condition and
+#: its near duplicates left out (:func:`leave_out`).
+LIBRARY_METHODS = ('library-select', 'library')
+#: Two conditions are near duplicates when their tables differ by less than this, rms over
+#: the gaits that stand in both, in units of the chaining error (RESIDUAL_SCALE).
+NEAR_DUPLICATE = 1.0
 CAMPAIGNS = ('campaign_priors', 'campaign_unforeseen')
 
 
@@ -70,7 +80,29 @@ def oracle_medians():
     return out
 
 
-def run_one(archive, priors_all, case, goal, method, seed, args):
+def leave_out(priors, damage):
+    """``priors`` less ``damage``'s own condition (the same damage, canonically) and every
+    table nearer to it than :data:`NEAR_DUPLICATE`; returns ``(priors, names left out)``."""
+    from sela_ros.core.learning.damage_priors import RESIDUAL_SCALE
+    from sim_bridge.damage import parse_damage
+
+    canonical = [parse_damage(n).canonical() for n in priors.names]
+    own = [i for i, c in enumerate(canonical) if c == parse_damage(damage).canonical()]
+    out = set(own)
+    for i in own:
+        for j in range(len(priors.names)):
+            stand = ~(priors.fallen[i] | priors.fallen[j])
+            diff = (priors.generic_reward[j, stand] - priors.generic_reward[i, stand]) \
+                / RESIDUAL_SCALE
+            if np.sqrt(np.mean(diff ** 2)) < NEAR_DUPLICATE:
+                out.add(j)
+    names = [priors.names[i] for i in sorted(out)]
+    for name in names:
+        priors = priors.without(name)
+    return priors, names
+
+
+def run_one(archive, priors_all, case, goal, method, seed, args, library=None):
     from sela_ros.core.detection import DetectorConfig
     from sela_ros.core.mission import run_mission
     from sela_ros.core.planning import straight_line_planner
@@ -78,8 +110,10 @@ def run_one(archive, priors_all, case, goal, method, seed, args):
     from sim_bridge.hexapod import Hexapod
 
     label, damage, leave_out = case
-    priors = None
-    if METHODS[method] is not None:
+    priors, left_out = None, []
+    if method in LIBRARY_METHODS:
+        priors, left_out = library[damage]
+    elif METHODS[method] is not None:
         priors = priors_all.without(damage) if leave_out else priors_all
     settings = archive.simulator_settings
     robot = Hexapod(dt=settings['dt'], gait_duration=settings['gait_duration'],
@@ -98,7 +132,8 @@ def run_one(archive, priors_all, case, goal, method, seed, args):
     return {'case': label, 'damage': damage, 'foreseen': not leave_out and priors is not None
             and damage in priors_all.names, 'goal': list(goal), 'method': method,
             'seed': seed, 'success': bool(success), 'steps': len(logic.records),
-            'falls': int(env.falls), 'wall_seconds': round(time.perf_counter() - start, 2)}
+            'falls': int(env.falls), 'wall_seconds': round(time.perf_counter() - start, 2),
+            **({'left_out': left_out} if method in LIBRARY_METHODS else {})}
 
 
 def summarise(runs, oracle, methods):
@@ -225,6 +260,9 @@ def main(argv=None):
     parser.add_argument('--lookahead', type=float, default=0.6)
     parser.add_argument('--out', default=None, help='JSON lines of every run (resumed)')
     parser.add_argument('--markdown', default=None, help='write the tables here')
+    parser.add_argument('--library', default=None,
+                        help='a damage library (scripts/build_library.py --assemble) for the '
+                             'methods ' + ', '.join(LIBRARY_METHODS))
     parser.add_argument('--report-only', action='store_true',
                         help='run nothing: print the tables of the runs in --out')
     args = parser.parse_args(argv)
@@ -255,6 +293,19 @@ def main(argv=None):
     if not args.report_only:
         archive = load_archive(default_archive_path())
         priors = resolve_priors('auto', default_archive_path(), archive.params)
+        library = {}
+        if set(methods) & set(LIBRARY_METHODS):
+            if not args.library:
+                parser.error(f'the methods {LIBRARY_METHODS} need --library')
+            whole = resolve_priors(args.library, default_archive_path(), archive.params)
+            for case in cases:
+                # A foreseen damage keeps its table; every other one is measured as if no
+                # condition of the library were it or near it.
+                library[case[1]] = leave_out(whole, case[1]) if case in UNFORESEEN \
+                    else (whole, [])
+                print(f'{case[0]}: {len(whole) - len(library[case[1]][0])} of {len(whole)} '
+                      f'library tables left out ({", ".join(library[case[1]][1]) or "none"})',
+                      flush=True)
         if args.out:
             Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         # Seed by seed: an interrupted comparison has every cell at the same count.
@@ -262,7 +313,7 @@ def main(argv=None):
                 for m in methods if (c[0], g, m, s) not in key]
         print(f'{len(todo)} runs to do ({len(done)} done already)', flush=True)
         for n, (case, goal, method, seed) in enumerate(todo, 1):
-            run = run_one(archive, priors, case, goal, method, seed, args)
+            run = run_one(archive, priors, case, goal, method, seed, args, library)
             done.append(run)
             if args.out:
                 with open(args.out, 'a') as handle:

@@ -100,12 +100,15 @@ def table(runs):
 
 
 def main(argv=None):
+    from sela_ros.experiments.arguments import take_negative_points
+
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--damages', default=';'.join(DAMAGES), help='";"-separated damages')
     parser.add_argument('--goals', nargs='+', default=list(GOALS), help='goals X,Y')
     parser.add_argument('--seeds', type=int, default=10, help='seeds 0..N-1 (default 10)')
     parser.add_argument('--timeout', type=float, default=300.0, help='per demo run (s)')
     parser.add_argument('--out', type=Path, required=True)
+    take_negative_points(parser)  # --goals 2.5,0.5 -2,-1.5
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     store = args.out / 'runs.json'

@@ -6,6 +6,8 @@ Grammar (items joined with ``,``; whitespace ignored; case-insensitive)::
     remove:<leg>                     the leg is gone (links, mass and contacts)
     shorten:<leg>[:<factor>]         tibia and foot scaled by factor in (0, 1], default 0.5
     block:<leg>.<joint>[=<angle>]    joint locked at angle (rad, within its limits), default 0
+    weaken:<leg>.<joint>[=<share>]   the joint's motor gives only this share of its torque,
+                                     in [0, 1), default 0.1 (a failing servo)
 
 ``<leg>`` is one of :data:`LEG_NAMES`, ``<joint>`` one of :data:`JOINT_NAMES`.
 Example: ``remove:middle_right,block:front_left.knee``.
@@ -20,7 +22,8 @@ LEG_NAMES = ('front_left', 'middle_left', 'rear_left',
 JOINT_NAMES = ('hip_yaw', 'hip_pitch', 'knee')
 JOINT_LIMITS = {'hip_yaw': math.pi / 2, 'hip_pitch': math.pi / 4, 'knee': math.pi / 4}
 DEFAULT_SHORTEN_FACTOR = 0.5
-KINDS = ('intact', 'remove', 'shorten', 'block')
+DEFAULT_WEAKEN_SHARE = 0.1
+KINDS = ('intact', 'remove', 'shorten', 'block', 'weaken')
 
 
 class DamageSpecError(ValueError):
@@ -33,21 +36,24 @@ def _fmt(x: float) -> str:
 
 @dataclass(frozen=True)
 class DamageSpec:
-    """Parsed damage: removed legs, shortened legs and blocked joints (sorted, hashable).
+    """Parsed damage: removed legs, shortened legs, blocked joints and weakened motors (sorted,
+    hashable).
 
     Attributes:
         removed: leg names removed.
         shortened: ``(leg, factor)`` pairs.
         blocked: ``(leg, joint, angle)`` triples.
+        weakened: ``(leg, joint, share of the motor's torque)`` triples.
     """
 
     removed: tuple[str, ...] = ()
     shortened: tuple[tuple[str, float], ...] = ()
     blocked: tuple[tuple[str, str, float], ...] = ()
+    weakened: tuple[tuple[str, str, float], ...] = ()
 
     @property
     def is_intact(self) -> bool:
-        return not (self.removed or self.shortened or self.blocked)
+        return not (self.removed or self.shortened or self.blocked or self.weakened)
 
     def canonical(self) -> str:
         """Canonical text form; ``parse_damage(s.canonical()) == s``."""
@@ -56,6 +62,7 @@ class DamageSpec:
         items = [f'remove:{leg}' for leg in self.removed]
         items += [f'shorten:{leg}:{_fmt(f)}' for leg, f in self.shortened]
         items += [f'block:{leg}.{joint}={_fmt(a)}' for leg, joint, a in self.blocked]
+        items += [f'weaken:{leg}.{joint}={_fmt(s)}' for leg, joint, s in self.weakened]
         return ','.join(items)
 
     def shorten_factor(self, leg: str) -> float:
@@ -69,6 +76,13 @@ class DamageSpec:
             if name == leg and j == joint:
                 return angle
         return None
+
+    def torque_share(self, leg: str, joint: str) -> float:
+        """The share of its torque the joint's motor gives (1 unless weakened)."""
+        for name, j, share in self.weakened:
+            if name == leg and j == joint:
+                return share
+        return 1.0
 
     def __str__(self) -> str:
         return self.canonical()
@@ -92,6 +106,18 @@ def _number(text: str, what: str, item: str) -> float:
     return value
 
 
+def _joint(rest: str, item: str, kind: str, what: str) -> tuple[str, str, str]:
+    """``(leg, joint, value text)`` of ``<leg>.<joint>[=<value>]``."""
+    target, _, value_text = rest.partition('=')
+    name, dot, joint = target.partition('.')
+    leg = _leg(name, item)
+    if not dot or joint not in JOINT_NAMES:
+        raise DamageSpecError(
+            f'unknown joint {joint!r} in damage item {item!r}; expected '
+            f'{kind}:<leg>.<joint>[=<{what}>] with joint one of {", ".join(JOINT_NAMES)}')
+    return leg, joint, value_text
+
+
 def parse_damage(spec) -> DamageSpec:
     """Parse a damage specification (a string, ``None`` or a :class:`DamageSpec`).
 
@@ -109,6 +135,7 @@ def parse_damage(spec) -> DamageSpec:
     removed: set[str] = set()
     shortened: dict[str, float] = {}
     blocked: dict[tuple[str, str], float] = {}
+    weakened: dict[tuple[str, str], float] = {}
     for raw in spec.replace(' ', '').replace('\t', '').lower().split(','):
         item = raw
         if item in ('', 'intact', 'none'):
@@ -129,13 +156,7 @@ def parse_damage(spec) -> DamageSpec:
                 raise DamageSpecError(f'leg {leg} shortened twice with different factors')
             shortened[leg] = factor
         elif kind == 'block':
-            target, _, angle_text = rest.partition('=')
-            name, dot, joint = target.partition('.')
-            leg = _leg(name, item)
-            if not dot or joint not in JOINT_NAMES:
-                raise DamageSpecError(
-                    f'unknown joint {joint!r} in damage item {item!r}; expected '
-                    f'block:<leg>.<joint>[=<angle>] with joint one of {", ".join(JOINT_NAMES)}')
+            leg, joint, angle_text = _joint(rest, item, 'block', 'angle')
             angle = 0.0 if angle_text == '' else _number(angle_text, 'block angle', item)
             limit = JOINT_LIMITS[joint]
             if abs(angle) > limit + 1e-12:
@@ -145,13 +166,29 @@ def parse_damage(spec) -> DamageSpec:
             if (leg, joint) in blocked and blocked[(leg, joint)] != angle:
                 raise DamageSpecError(f'joint {leg}.{joint} blocked twice at different angles')
             blocked[(leg, joint)] = angle
+        elif kind == 'weaken':
+            leg, joint, share_text = _joint(rest, item, 'weaken', 'share')
+            share = (DEFAULT_WEAKEN_SHARE if share_text == ''
+                     else _number(share_text, 'weaken share', item))
+            if not 0.0 <= share < 1.0:
+                raise DamageSpecError(f'weaken share in {item!r} must be in [0, 1) (the share '
+                                      f'of the motor\'s torque left), got {share}')
+            if weakened.get((leg, joint), share) != share:
+                raise DamageSpecError(f'joint {leg}.{joint} weakened twice to different shares')
+            weakened[(leg, joint)] = share
         else:
             raise DamageSpecError(
                 f'unknown damage kind {kind!r} in {item!r}; valid kinds: {", ".join(KINDS)} '
-                f'(e.g. remove:middle_right, shorten:front_left:0.5, block:rear_right.knee=0.2)')
+                f'(e.g. remove:middle_right, shorten:front_left:0.5, block:rear_right.knee=0.2, '
+                f'weaken:front_left.knee=0.3)')
     for leg in removed:
-        if leg in shortened or any(b[0] == leg for b in blocked):
-            raise DamageSpecError(f'leg {leg} is removed; it cannot also be shortened or blocked')
+        if leg in shortened or any(b[0] == leg for b in blocked) or \
+                any(w[0] == leg for w in weakened):
+            raise DamageSpecError(f'leg {leg} is removed; it cannot also be shortened, blocked '
+                                  'or weakened')
+    for leg, joint in weakened:
+        if (leg, joint) in blocked:
+            raise DamageSpecError(f'joint {leg}.{joint} is blocked; it cannot also be weakened')
     order = {name: i for i, name in enumerate(LEG_NAMES)}
     jorder = {name: i for i, name in enumerate(JOINT_NAMES)}
     return DamageSpec(
@@ -159,4 +196,6 @@ def parse_damage(spec) -> DamageSpec:
         shortened=tuple(sorted(shortened.items(), key=lambda kv: order[kv[0]])),
         blocked=tuple(sorted(((leg, joint, a) for (leg, joint), a in blocked.items()),
                              key=lambda b: (order[b[0]], jorder[b[1]]))),
+        weakened=tuple(sorted(((leg, joint, s) for (leg, joint), s in weakened.items()),
+                              key=lambda w: (order[w[0]], jorder[w[1]]))),
     )

@@ -203,7 +203,8 @@ class Hexapod:
                 self._joint_sources.append(('blocked', self.damage.blocked_angle(leg, joint)))
         self._foot_links = [link_by_name.get(f'{leg}.foot', -1) for leg in LEG_NAMES]
         self._link_to_leg = {link: i for i, link in enumerate(self._foot_links) if link >= 0}
-        self._forces = [MAX_FORCE] * len(self._active_joints)
+        self._forces = [MAX_FORCE * self.damage.torque_share(*ALL_JOINT_NAMES[col].split('.'))
+                        for col in self._active_columns]
         self._max_link = max(link_by_name.values()) if link_by_name else -1
 
     def _servo(self, targets: np.ndarray) -> np.ndarray:
@@ -287,10 +288,6 @@ class Hexapod:
     def base_pose_3d(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """Full base position (x, y, z) and quaternion (x, y, z, w)."""
         return p.getBasePositionAndOrientation(self._robot, physicsClientId=self._client)
-
-    def base_velocity(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """Base linear and angular velocity in the world frame."""
-        return p.getBaseVelocity(self._robot, physicsClientId=self._client)
 
     def joint_states(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities in :attr:`joint_names` order."""

@@ -54,7 +54,8 @@ IDLE_PERIOD = 0.1  # s (wall) between state messages while no gait runs
 
 PARAMETERS = (
     Spec('damage', 'remove:middle_right', 'what is broken; can change at run time: intact, '
-         'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], comma-joined',
+         'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], '
+         'weaken:<leg>.<joint>[=torque share], comma-joined',
          rule=damage_rule),
     Spec('sim.dt', 1.0 / 240.0, 'physics step; must match the archive', low=1e-4, high=0.05,
          unit=' s', read_only=True),
@@ -73,7 +74,7 @@ PARAMETERS = (
     Spec('publish_period', 0.5, 'sim time between state messages (/clock, odom, joint states, '
          '/tf) during a gait', low=0.001, high=60.0, unit=' s'),
     Spec('publish_max_rate', 5.0, 'at most this many state messages per wall second during a '
-         'gait (0: no cap)', low=0.0, high=1000.0, unit=' Hz'),
+         'gait (none: no cap)', low=0.0, high=1000.0, unit=' Hz', word='none'),
     Spec('observation.noise_std', 0.01, 'std of the Gaussian noise on observed positions',
          low=0.0, high=1.0, unit=' m'),
     Spec('seed', 0, 'seed of the observation noise', low=0, high=2**31 - 1, read_only=True),
@@ -84,6 +85,11 @@ PARAMETERS = (
     Spec('righting_time', RIGHTING_TIME, 'sim time a fallen robot takes to get up',
          low=0.0, high=600.0, unit=' s', read_only=True),
 )
+
+
+def _max_rate(value):
+    """``publish_max_rate`` as Hz, or None for none (no cap)."""
+    return None if value == 'none' else float(value)
 
 
 def _has_display():
@@ -105,7 +111,7 @@ class SimBridge(Node):
                                    right_on_fall=values['right_on_fall'],
                                    righting_time=values['righting_time'])
         self.publish_period = values['publish_period']
-        self.publish_max_rate = values['publish_max_rate']
+        self.publish_max_rate = _max_rate(values['publish_max_rate'])
         self.right_on_fall = values['right_on_fall']
 
         self._sim_lock = threading.Lock()  # held by whoever touches the simulator
@@ -223,7 +229,7 @@ class SimBridge(Node):
             elif param.name == 'publish_period':
                 self.publish_period = float(param.value)
             elif param.name == 'publish_max_rate':
-                self.publish_max_rate = float(param.value)
+                self.publish_max_rate = _max_rate(param.value)
         return SetParametersResult(successful=True)
 
     # --- worker thread -------------------------------------------------------------------
@@ -273,7 +279,7 @@ class SimBridge(Node):
         # per wall second: every message wakes each subscriber's executor, and on a small
         # machine that CPU time is taken from the gait (+15 % per step measured at 0.5 s sim
         # uncapped, 20x real time). The state at the end of the gait always goes out.
-        min_gap = 1.0 / self.publish_max_rate if self.publish_max_rate > 0 else 0.0
+        min_gap = 0.0 if self.publish_max_rate is None else 1.0 / self.publish_max_rate
         last = [time.monotonic()]
 
         def on_step(sim_time, pose, positions, velocities):

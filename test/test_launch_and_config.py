@@ -129,16 +129,13 @@ def test_config_defaults_are_the_code_defaults():
     config = _config()
     adapter = config['sela_adapter']['ros__parameters']
     for key, value in SELAConfig().to_dict().items():
-        if key in ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon'):  # 0: the
-            from sela_ros.core.mission import make_sela
-            from sela_ros.core.storage import (
-                default_archive_path,  # archive's
-                load_archive,  # archive's
-            )
+        if key in ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon'):  # auto: the
+            from sela_ros.core.mission import make_sela  # archive's
+            from sela_ros.core.storage import default_archive_path, load_archive
 
-            assert adapter[key] == 0.0
+            assert adapter[key] == 'auto'
             shipped = load_archive(default_archive_path())
-            used = make_sela(shipped, {key: 0.0}).config
+            used = make_sela(shipped, {key: 'auto'}).config
             assert used.gp_kernel_sigma == shipped.kernel_sigma
             assert used.fall_kernel_sigma == shipped.fall_kernel_sigma
             assert used.planner_horizon == shipped.planner_horizon == 2

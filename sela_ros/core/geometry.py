@@ -53,11 +53,6 @@ def se2_relative(start, end):
     return np.array([c * dxw + s * dyw, -s * dxw + c * dyw, wrap_angle(yaw1 - yaw0)])
 
 
-def se2_inverse(pose):
-    """The pose that undoes ``pose``: compose(pose, inverse(pose)) = (0, 0, 0)."""
-    return se2_relative(pose, (0.0, 0.0, 0.0))
-
-
 def generic_reward(start_pose, end_pose):
     """The paper's generic reward (``afun``) of a gait: its end pose in its start frame."""
     return se2_relative(start_pose, end_pose)

@@ -1,6 +1,6 @@
 """The ``sela_adapter`` node's parameters: names, defaults, descriptions, ranges, and what
 they configure (SELA and the mission stepper). Declared through :func:`params.declare`."""
-from sela_ros.core.learning import SELAConfig
+from sela_ros.core.learning import AUTO, NONE, SELAConfig
 from sela_ros.core.mission import ON_DETECTION, StepperConfig
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.params import Spec
@@ -8,9 +8,9 @@ from sela_ros.nodes.params import Spec
 PARAMETERS = (
     Spec('archive', '', "the MAP-Elites archive (.npz); '' = the one shipped with the package "
          "(the 8-D map), '8d' / '2d' = the shipped ones by name; can change between steps"),
-    Spec('gp.kernel.sigma', 0.0, "kernel length on normalised descriptors; 0 = the archive's "
-         '(0.1, the paper\'s, for a 2-D map; 0.3 for the 8-D map)', low=0.0, high=100.0,
-         read_only=True),
+    Spec('gp.kernel.sigma', AUTO, "kernel length on normalised descriptors; auto = the "
+         "archive's (0.1, the paper's, for a 2-D map; 0.3 for the 8-D map)", low=0.0,
+         high=100.0, kind='double', word=AUTO, read_only=True),
     Spec('gp.noise', 0.001, 'GP noise variance', low=0.0, high=100.0, read_only=True),
     Spec('acquisition.ucb.alpha', 0.05, 'UCB exploration weight', low=0.0, high=100.0,
          read_only=True),
@@ -21,21 +21,23 @@ PARAMETERS = (
     Spec('fall.risk.cost', 1.0, 'what a fall costs, in metres of predicted progress: UCB takes '
          'cost x risk off every gait (0: only the threshold)', low=0.0, high=100.0,
          unit=' m', read_only=True),
-    Spec('fall.kernel.sigma', 0.0, "kernel length of the fall GP; 0 = the archive's (0.1 for a "
-         '2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, read_only=True),
+    Spec('fall.kernel.sigma', AUTO, "kernel length of the fall GP; auto = the archive's (0.1 "
+         'for a 2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, kind='double',
+         word=AUTO, read_only=True),
     Spec('planner.lookahead', SELAConfig.planner_lookahead, 'distance along the path to the '
          'waypoint of the reward', low=0.01, high=100.0, unit=' m', read_only=True),
-    Spec('planner.horizon', 0, "steps looked ahead: 1 = the paper's (the gait landing nearest "
-         'the waypoint), 2 = the gait that leaves the robot best placed for the next one; 0 '
-         "= the archive's (1 for a 2-D map, 2 for the 8-D map)", low=0, high=2,
-         read_only=True),
+    Spec('planner.horizon', AUTO, "steps looked ahead: 1 = the paper's (the gait landing "
+         'nearest the waypoint), 2 = the gait that leaves the robot best placed for the next '
+         "one; auto = the archive's (1 for a 2-D map, 2 for the 8-D map)", low=1, high=2,
+         kind='integer', word=AUTO, read_only=True),
     Spec('priors.tables', 'auto', "damage priors: tables of the archive's gaits on foreseen "
          "damages (docs/archive.md); 'auto' = those shipped beside the archive if any, 'none' "
          "= the intact map only (the paper), or a path (.npz from `make priors`)",
          read_only=True, renamed_from='priors'),
-    Spec('priors.max_misfit', 0.6, "a damage prior is used only while its median squared error "
-         'over the steps seen is below this (units of 0.1 m, 0.1 m, 0.25 rad); 0 = never',
-         low=0.0, high=1e6, read_only=True, renamed_from='priors.max.misfit'),
+    Spec('priors.max_misfit', SELAConfig.priors_max_misfit, 'a damage prior is used on its '
+         'own only while its median squared error over the steps seen is below this (units '
+         'of 0.1 m, 0.1 m, 0.25 rad); none = never (the tables serve only in the mixture)',
+         low=0.0, high=1e6, word=NONE, read_only=True, renamed_from='priors.max.misfit'),
     Spec('priors.max_misfit_reproduced', 2.0, 'the same cap for a damage prior that '
          'reproduced every step from a standing start (spawned, reset or righted); below '
          'priors.max_misfit = no exception', low=0.0, high=1e6, read_only=True,
@@ -43,8 +45,8 @@ PARAMETERS = (
     Spec('priors.weights.sd', SELAConfig.priors_weights_sd, 'while no damage prior '
          'reproduced the steps from a standing start, the prior mean is the tables mixed by '
          'weights fitted to the steps seen (docs/priors_combination.md); this is the prior '
-         'spread of each weight; 0 = no mixture, the one table that best explains the steps',
-         low=0.0, high=1e6, read_only=True),
+         'spread of each weight; none = no mixture, the one table that best explains the '
+         'steps', low=0.0, high=1e6, word=NONE, read_only=True),
     Spec('max_steps', StepperConfig.max_steps, 'steps before a mission is declared failed',
          low=1, high=10**9),
     Spec('detector_timeout', StepperConfig.detector_timeout, "wall time to wait for the "

@@ -327,10 +327,6 @@ def point_stamped(xy, stamp=0.0, frame_id='odom'):
     return msg
 
 
-def point_from_msg(msg):
-    return _finite_array([msg.point.x, msg.point.y], 'point', 2)
-
-
 def path_to_msg(path_xy, stamp=0.0, frame_id='odom'):
     msg = Path()
     msg.header.stamp = time_to_msg(stamp) if not isinstance(stamp, Time) else stamp

@@ -74,8 +74,6 @@ ALIVE_QOS = QoSProfile(depth=1, history=QoSHistoryPolicy.KEEP_LAST,
                        reliability=QoSReliabilityPolicy.RELIABLE,
                        liveliness=QoSLivelinessPolicy.AUTOMATIC,
                        liveliness_lease_duration=Duration(seconds=LIVELINESS_LEASE))
-#: Kept for readers of the outcome stream (an alias: outcomes are decision inputs).
-OUTCOME_QOS = DECISION_QOS
 
 # Node names (public: ``ros2 run sela_ros <executable>`` starts a node of that name).
 SIM_BRIDGE = 'sim_bridge'

@@ -14,6 +14,13 @@ YAML that ``ros2 param dump`` writes nests the segments, and cannot hold both
 (:func:`nesting_conflicts`). A parameter renamed for that keeps its earlier name readable from a
 start-up file for one release (``Spec.renamed_from``).
 
+A number that can also be "the archive's value" or "off" takes a word for that
+(``Spec.word``: ``auto`` or ``none``), never a magic number: ``gp.kernel.sigma: auto``,
+``publish_max_rate: none``. Such a parameter is a string while it holds the word and a number
+otherwise (its descriptor allows both), so ``ros2 param dump`` writes either back as it was
+given. A 0 given for it, the number that meant the word, is read as the word with a warning,
+for one release.
+
 The checks are ROS-free (property-tested); only :func:`declare` touches rclpy.
 """
 import math
@@ -21,47 +28,9 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 
-STARTUP_ONLY = 'can only be set at start-up (restart the node with the new value)'
-
 
 def _is_number(value):
     return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def positive_number(unit=''):
-    def rule(value):
-        if not (_is_number(value) and math.isfinite(value) and value > 0):
-            return f'must be a finite number > 0{unit}, got {value!r}'
-        return None
-    return rule
-
-
-def non_negative_number(unit=''):
-    def rule(value):
-        if not (_is_number(value) and math.isfinite(value) and value >= 0):
-            return f'must be a finite number >= 0{unit}, got {value!r}'
-        return None
-    return rule
-
-
-def positive_int(value):
-    if not (isinstance(value, int) and not isinstance(value, bool) and value > 0):
-        return f'must be an integer > 0, got {value!r}'
-    return None
-
-
-def non_negative_int(value):
-    if not (isinstance(value, int) and not isinstance(value, bool) and value >= 0):
-        return f'must be an integer >= 0, got {value!r}'
-    return None
-
-
-def string(value):
-    return None if isinstance(value, str) else f'must be a string, got {value!r}'
-
-
-def startup_only(value):
-    return STARTUP_ONLY
 
 
 class StartupParameterError(Exception):
@@ -88,6 +57,8 @@ class Spec:
             ``integer_array`` or ``string_array``; inferred from ``default`` when None.
         renamed_from: an earlier name, still read from a parameter file or ``-p`` (with a
             warning) for one release.
+        word: a word accepted beside the ``kind`` of value (``'auto'``, ``'none'``); a 0
+            given is read as the word, with a warning.
     """
     name: str
     default: object
@@ -99,6 +70,7 @@ class Spec:
     rule: Callable | None = None
     kind: str | None = None
     renamed_from: str | None = None
+    word: str | None = None
 
     @property
     def type(self):
@@ -131,7 +103,7 @@ class Spec:
             text += f' >= {low}'
         elif self.high is not None:
             text += f' <= {high}'
-        return text + self.unit
+        return text + self.unit + (f' or {self.word}' if self.word else '')
 
 
 def _is_int(value):
@@ -169,18 +141,34 @@ def check(spec, value):
     """
     if value is None and spec.default is None:
         return None
+    if spec.word is not None and value == spec.word:
+        return None
     if not _fits(spec, value):
         return f'must be {spec.constraints()}, got {value!r}'
     return spec.rule(value) if spec.rule is not None else None
 
 
 def coerce(spec, value):
-    """``value`` in the spec's type where it is an integer given for a double."""
+    """``value`` in the spec's type where it is an integer given for a double, and the spec's
+    word where it is the 0 that stood for it (:func:`zero_for_word`)."""
+    if zero_for_word(spec, value):
+        return spec.word
     if spec.type == 'double' and _as_double(value):
         return float(value)
     if spec.type == 'double_array' and _is_sequence(value) and all(map(_as_double, value)):
         return [float(v) for v in value]
     return value
+
+
+def zero_for_word(spec, value):
+    """Whether ``value`` is a 0 given for a parameter that spells it with a word."""
+    return spec.word is not None and _is_number(value) and value == 0
+
+
+def word_warning(spec):
+    """What to tell a user who gave 0 for ``spec``'s word."""
+    return (f'parameter {spec.name}: 0 is spelled {spec.word} now: read as {spec.name} = '
+            f'{spec.word}; give {spec.word} instead (0 will stop meaning {spec.word})')
 
 
 def _as_double(value):
@@ -217,6 +205,9 @@ def declare(node, specs, on_change=None):
     declaring = [True]
 
     def coerce_batch(params):
+        for p in params:
+            if p.name in specs and zero_for_word(specs[p.name], p.value):
+                node.get_logger().warn(word_warning(specs[p.name]))
         return [Parameter(p.name, value=coerce(specs[p.name], p.value))
                 if p.name in specs and coerce(specs[p.name], p.value) is not p.value else p
                 for p in params]
@@ -294,22 +285,6 @@ def take_renamed(overrides, specs, warn):
         overrides[spec.name] = type(param)(spec.name, value=param.value)
         warn(f'parameter {old} is now {spec.name}: read as {spec.name} = {param.value!r}; '
              'rename it in the parameter file (the old name will stop working)')
-
-
-def first_problem(changes, rules):
-    """Return ``'<name> <problem>'`` for the first change a rule refuses, else None.
-
-    Args:
-        changes: iterable of ``(name, value)``.
-        rules: ``{name: rule}``; a rule returns None or what is wrong. Names without a rule
-            are accepted (ROS itself checks their declared types).
-    """
-    for name, value in changes:
-        rule = rules.get(name)
-        problem = rule(value) if rule is not None else None
-        if problem:
-            return f'{name} {problem}'
-    return None
 
 
 def params_file_problems(args):

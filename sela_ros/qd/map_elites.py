@@ -1,17 +1,23 @@
-"""MAP-Elites: fills the behaviour-performance map that SELA starts from.
+"""MAP-Elites with pyribs: fills the behaviour-performance map that SELA starts from.
 
-pyribs-like parts, each swappable: an archive (:mod:`sela_ros.qd.grid_archive`), an emitter
-(:mod:`sela_ros.qd.emitter`), an evaluation function (:mod:`sela_ros.qd.evaluators`) and an
-executor (:mod:`sela_ros.qd.executors`). :class:`MapElites` composes them: ask/tell, a run
-loop with a progress bar, and checkpoints written atomically every K batches plus a
-per-batch journal, so a run killed at any moment (even by SIGKILL) resumes without losing a
-finished batch and continues the same random stream, ending exactly where an uninterrupted
-run ends.
+pyribs supplies the archive (:class:`ribs.archives.GridArchive` here: one elite per cell of a
+regular grid over the descriptor space; :mod:`sela_ros.qd.cvt` the CVT one), the iso-line
+emitters (Vassiliades & Mouret 2018) and the ask/tell :class:`ribs.schedulers.Scheduler`.
+What pyribs lacks comes from this package: the executors (:mod:`~sela_ros.qd.executors`:
+serial, process pool, Dask), the evaluation functions (:mod:`~sela_ros.qd.evaluators`), the
+run loop with its progress bar, and checkpoints. A checkpoint is a pickle of the whole
+scheduler (archive, emitters and every random generator in them), written atomically every
+K batches, with a per-batch journal in between, so a run killed at any moment (even by
+SIGKILL) resumes without losing a finished batch and ends exactly where an uninterrupted run
+ends; the file carries everything, so it resumes on another machine too (same pyribs
+version). Only load checkpoints you made: unpickling runs code.
+
+pyribs is an optional dependency (``requirements-qd.txt``): only the map builder imports
+this module, never the nodes.
 """
 from __future__ import annotations
 
-import json
-import os
+import pickle
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -20,35 +26,99 @@ from typing import Any
 
 import numpy as np
 
-from sela_ros.core.storage import Archive, atomic_savez, make_metadata
-from sela_ros.qd.emitter import MapElitesEmitter
+from sela_ros.core.storage import Archive, atomic_savez, atomic_write, make_metadata
 from sela_ros.qd.evaluators import EvaluationResult
 from sela_ros.qd.executors import SerialEvaluator
-from sela_ros.qd.grid_archive import GridArchive
 
 CHECKPOINT_FORMAT_VERSION = 1
 
+# Fitness (arc_fitness) lies in [-pi, 0]: anything above THRESHOLD_MIN may fill an empty cell,
+# an invalid gait is told with INVALID_OBJECTIVE and never does. With a learning rate of 1,
+# the threshold of a filled cell is its elite's objective: plain MAP-Elites.
+THRESHOLD_MIN = -4.0
+INVALID_OBJECTIVE = -1e9
+EXTRA_FIELDS = {'generic_reward': ((3,), np.float64)}
+
+
+def ribs_parts():
+    """pyribs' ``(GridArchive, CVTArchive, IsoLineEmitter, Scheduler)``."""
+    try:
+        from ribs.archives import CVTArchive, GridArchive
+        from ribs.emitters import IsoLineEmitter
+        from ribs.schedulers import Scheduler
+    except ImportError as exc:
+        raise ImportError('the map builder needs pyribs: pip install -r requirements-qd.txt '
+                          '(ribs==0.12.0)') from exc
+    return GridArchive, CVTArchive, IsoLineEmitter, Scheduler
+
+
+def iso_line_emitters(archive, seeds, config, initial_rng=None) -> list:
+    """One pyribs ``IsoLineEmitter`` per seed, over solutions in ``[0, 1]``; each starts
+    from ``config['n_initial']`` uniform random solutions, drawn from ``initial_rng`` (in
+    turn) or else from a generator of the emitter's own seed."""
+    _, _, IsoLineEmitter, _ = ribs_parts()
+    dim = archive.solution_dim
+    return [IsoLineEmitter(archive, iso_sigma=config['iso_sigma'],
+                           line_sigma=config['line_sigma'], bounds=[(0.0, 1.0)] * dim,
+                           batch_size=config['batch_size'], seed=int(s),
+                           initial_solutions=(initial_rng or np.random.default_rng(int(s)))
+                           .random((config['n_initial'], dim)))
+            for s in seeds]
+
 
 class MapElites:
-    """MAP-Elites: an archive, an emitter and an evaluation function, with checkpoints.
+    """MAP-Elites on a pyribs scheduler, with executors, checkpoints and a journal.
+
+    A subclass says which archive (:meth:`_make_archive`) and what its saved map holds
+    (:meth:`to_archive`); :data:`KIND` names it in checkpoints.
 
     Args:
-        archive: the grid of elites.
-        emitter: proposes solutions.
-        evaluate: picklable ``params -> EvaluationResult``.
+        bounds: ``(low, high)`` per descriptor dimension (what ``descriptor_bounds`` says).
+        evaluate: picklable ``params -> EvaluationResult`` with a ``d``-long descriptor.
         executor: evaluates batches (default :class:`SerialEvaluator`).
+        batch_size: solutions per emitter and batch.
+        emitters: number of iso-line emitters (each proposes ``batch_size`` per batch).
+        n_initial: uniform random solutions of the first batch (per emitter).
+        iso_sigma, line_sigma: iso-line variation steps.
+        seed: seeds the archive and each emitter (``np.random.default_rng`` streams).
         checkpoint_path: where to write checkpoints (``None``: no checkpoints).
         checkpoint_every: write a full checkpoint every K batches; the batches in between
             are journalled one file each, so no finished batch is lost.
+
+    Raises:
+        ValueError: on inconsistent bounds or a non-positive size.
     """
 
-    def __init__(self, archive: GridArchive, emitter: MapElitesEmitter, evaluate: Callable,
-                 executor=None, checkpoint_path: str | os.PathLike | None = None,
-                 checkpoint_every: int = 10):
+    KIND = None
+
+    def __init__(self, bounds, evaluate: Callable, executor=None, batch_size: int = 100,
+                 emitters: int = 1, n_initial: int | None = None, iso_sigma: float = 0.01,
+                 line_sigma: float = 0.2, seed: int = 0, checkpoint_path=None,
+                 checkpoint_every: int = 10, solution_dim: int = 36):
+        _, _, _, Scheduler = ribs_parts()
+        bounds = np.asarray(bounds, dtype=np.float64)
+        if bounds.ndim != 2 or bounds.shape[1] != 2 or not np.all(np.isfinite(bounds)) \
+                or not np.all(bounds[:, 1] > bounds[:, 0]):
+            raise ValueError(f'bounds must be finite (low, high) pairs with low < high, got '
+                             f'{bounds.tolist()}')
+        if batch_size < 1 or emitters < 1 or solution_dim < 1:
+            raise ValueError(f'batch_size, emitters and solution_dim must be >= 1, got '
+                             f'{batch_size}, {emitters}, {solution_dim}')
+        self.bounds = bounds
+        self.seed = int(seed)
+        self.config = {'batch_size': int(batch_size), 'emitters': int(emitters),
+                       'n_initial': int(batch_size if n_initial is None else n_initial),
+                       'iso_sigma': float(iso_sigma), 'line_sigma': float(line_sigma),
+                       'seed': int(seed)}
+        seeds = np.random.SeedSequence(seed).generate_state(emitters + 2)
+        archive = self._make_archive(solution_dim, int(seeds[0]))
+        self.scheduler = Scheduler(archive, iso_line_emitters(
+            archive, seeds[2:], self.config, np.random.default_rng(int(seeds[1]))))
+        self._start(evaluate, executor, checkpoint_path, checkpoint_every)
+
+    def _start(self, evaluate, executor, checkpoint_path, checkpoint_every):
         if checkpoint_every < 1:
             raise ValueError(f'checkpoint_every must be >= 1, got {checkpoint_every}')
-        self.archive = archive
-        self.emitter = emitter
         self.evaluate = evaluate
         self.executor = executor if executor is not None else SerialEvaluator()
         self.checkpoint_path = Path(checkpoint_path) if checkpoint_path else None
@@ -61,55 +131,77 @@ class MapElites:
         self.info: dict[str, Any] = {}
         self._pending: np.ndarray | None = None
 
+    def _make_archive(self, solution_dim: int, seed: int):
+        raise NotImplementedError
+
+    @property
+    def archive(self):
+        """The pyribs archive of elites."""
+        return self.scheduler.archive
+
     # ask/tell ------------------------------------------------------------------------
     def ask(self, n: int | None = None) -> np.ndarray:
-        """The next batch of solutions to evaluate."""
-        self._pending = self.emitter.ask(n)
+        """The next batch: every emitter's ``batch_size`` solutions (``n`` is ignored).
+
+        pyribs emitters ask whole batches, so a run ends on the first batch that reaches
+        its budget instead of shortening the last one.
+        """
+        self._pending = np.asarray(self.scheduler.ask(), dtype=np.float64)
         return self._pending
 
-    def tell(self, solutions: np.ndarray, results: Sequence[EvaluationResult]) -> np.ndarray:
-        """Insert evaluated solutions; invalid ones (falls) are discarded.
+    def tell(self, solutions: np.ndarray, results: Sequence[EvaluationResult]) -> int:
+        """Insert evaluated solutions; invalid ones (falls) are kept out of the archive.
 
         Returns:
-            ``(n,)`` insertion status (see :meth:`GridArchive.add`).
+            The number of cells this batch filled.
         """
         solutions = np.asarray(solutions, dtype=np.float64)
+        if self._pending is None or solutions.shape != self._pending.shape \
+                or not np.array_equal(solutions, self._pending):
+            raise ValueError('tell() must follow ask() with the solutions it returned')
         if len(results) != len(solutions):
             raise ValueError(f'got {len(results)} results for {len(solutions)} solutions')
         n = len(solutions)
+        d = self.bounds.shape[0]
         valid = np.array([bool(r.valid) for r in results], dtype=bool)
-        d = len(self.archive.dims)
-        objectives = np.array([r.fitness if r.valid else -np.inf for r in results], dtype=float)
-        measures = np.array([np.asarray(r.descriptor, dtype=float) for r in results]).reshape(n, d)
-        rewards = np.array([np.asarray(r.generic_reward, dtype=float)
+        objectives = np.array([float(r.fitness) if r.valid else 0.0 for r in results])
+        measures = np.array([np.asarray(r.descriptor, dtype=np.float64)
+                             for r in results]).reshape(n, d)
+        rewards = np.array([np.asarray(r.generic_reward, dtype=np.float64)
                             for r in results]).reshape(n, 3)
-        objectives[~valid] = -np.inf
-        status = self.archive.add(solutions, objectives, measures, generic_reward=rewards)
-        self.emitter.tell(solutions, objectives, measures, status)
+        valid &= np.isfinite(objectives) & np.all(np.isfinite(measures), axis=1)
+        # The scheduler wants a result for every solution it asked; an invalid one (a fall)
+        # is told with an objective below the archive's threshold_min, so it takes no cell,
+        # and with a finite stand-in measure.
+        objectives[~valid] = INVALID_OBJECTIVE
+        measures[~valid] = self.bounds[:, 0]
+        rewards[~np.all(np.isfinite(rewards), axis=1)] = 0.0
+        before = self.archive.stats.num_elites
+        self.scheduler.tell(objectives, measures, generic_reward=rewards)
         self.n_evaluations += n
         self.n_invalid += int(np.count_nonzero(~valid))
         self.n_batches += 1
         self._pending = None
-        return status
+        return self.archive.stats.num_elites - before
 
-    def step(self, n: int | None = None) -> np.ndarray:
+    def step(self) -> int:
         """Ask, evaluate on the executor, tell, and checkpoint/journal as configured."""
-        solutions = self.ask(n)
+        solutions = self.ask()
         results = self.executor.map(self.evaluate, solutions)
-        status = self.tell(solutions, results)
+        filled = self.tell(solutions, results)
         if self.checkpoint_path is not None:
             if self.n_batches % self.checkpoint_every == 0:
                 self.save_checkpoint()
             else:
                 self._journal(solutions, results)
-        return status
+        return filled
 
-    def run(self, n_evaluations: int, progress: bool = True) -> GridArchive:
+    def run(self, n_evaluations: int, progress: bool = True):
         """Evaluate until ``n_evaluations`` in total (counting those before a resume).
 
         Args:
-            n_evaluations: total budget; the last batch is shortened to hit it exactly.
-            progress: show a tqdm bar (evaluations/s, filled cells) on stderr.
+            n_evaluations: total budget; the batch that reaches it is the last.
+            progress: show a tqdm bar (evaluations/s, elites, coverage) on stderr.
         """
         if n_evaluations < 0:
             raise ValueError(f'n_evaluations must be >= 0, got {n_evaluations}')
@@ -125,7 +217,7 @@ class MapElites:
             while self.n_evaluations < n_evaluations:
                 start = time.perf_counter()
                 before = self.n_evaluations
-                self.step(self._next_batch_size(n_evaluations - self.n_evaluations))
+                self.step()
                 self.elapsed += time.perf_counter() - start
                 if bar is not None:
                     bar.set_postfix(**self.progress_info(), refresh=False)
@@ -137,13 +229,10 @@ class MapElites:
                 bar.close()
         return self.archive
 
-    def _next_batch_size(self, remaining: int) -> int:
-        """Solutions to ask for next; the last batch is shortened to end on the budget."""
-        return min(self.emitter.batch_size, remaining)
-
     def progress_info(self) -> dict[str, Any]:
         """Figures shown beside the progress bar."""
-        return {'cells': self.archive.num_elites, 'coverage': f'{self.archive.coverage:.1%}'}
+        stats = self.archive.stats
+        return {'elites': stats.num_elites, 'coverage': f'{stats.coverage:.1%}'}
 
     # checkpoints -----------------------------------------------------------------------
     @property
@@ -152,36 +241,26 @@ class MapElites:
         return self.checkpoint_path.with_name(self.checkpoint_path.name + '.journal')
 
     def state(self) -> dict[str, Any]:
-        """JSON-serialisable run state (everything but the archive's arrays)."""
-        return {'format_version': CHECKPOINT_FORMAT_VERSION,
-                'dims': list(self.archive.dims), 'bounds': self.archive.bounds.tolist(),
-                'solution_dim': self.archive.solution_dim,
-                'extra_fields': self.archive.extra_fields,
-                'emitter': self.emitter.state_dict(),
-                'n_evaluations': self.n_evaluations, 'n_batches': self.n_batches,
-                'n_invalid': self.n_invalid, 'elapsed': self.elapsed, 'info': self.info}
+        """Counters and configuration (the scheduler itself is pickled beside them)."""
+        import ribs
 
-    def save_checkpoint(self, path: str | os.PathLike | None = None) -> Path:
-        """Write archive + emitter RNG state + counters atomically; prune the journal."""
+        return {'format_version': CHECKPOINT_FORMAT_VERSION, 'kind': self.KIND,
+                'ribs_version': ribs.__version__, 'config': self.config,
+                'bounds': self.bounds.tolist(), 'n_evaluations': self.n_evaluations,
+                'n_batches': self.n_batches, 'n_invalid': self.n_invalid,
+                'elapsed': self.elapsed, 'info': self.info}
+
+    def save_checkpoint(self, path=None) -> Path:
+        """Write the scheduler and counters atomically; prune the journal."""
         path = Path(path) if path is not None else self.checkpoint_path
         if path is None:
             raise ValueError('no checkpoint path: pass one or set checkpoint_path')
-        self._write_checkpoint(path)
+        payload = {'state': self.state(), 'scheduler': self.scheduler}
+        atomic_write(path, lambda handle: pickle.dump(payload, handle,
+                                                      protocol=pickle.HIGHEST_PROTOCOL))
         if self.checkpoint_path is not None and path == self.checkpoint_path:
             self._prune_journal()
         return path
-
-    def _write_checkpoint(self, path: Path) -> None:
-        arrays = dict(self.archive.state_dict())
-        arrays['state'] = np.array(json.dumps(self.state()))
-        atomic_savez(path, **arrays)
-
-    def _rng_snapshot(self) -> Any:
-        """Whatever :meth:`ask` changes, so that an ask can be undone."""
-        return self.emitter.rng.bit_generator.state, self.emitter.n_asked
-
-    def _rng_restore(self, snapshot: Any) -> None:
-        self.emitter.rng.bit_generator.state, self.emitter.n_asked = snapshot
 
     def _journal(self, solutions: np.ndarray, results: Sequence[EvaluationResult]) -> None:
         n = len(results)
@@ -213,11 +292,11 @@ class MapElites:
                 break
             with np.load(entry, allow_pickle=False) as npz:
                 data = {k: npz[k] for k in npz.files}
-            snapshot = self._rng_snapshot()
-            solutions = self.ask(len(data['solutions']))
+            snapshot = pickle.dumps(self.scheduler, protocol=pickle.HIGHEST_PROTOCOL)
+            solutions = self.ask()
             if not np.array_equal(solutions, data['solutions']):
                 # Not this run's batch (e.g. settings changed): undo the ask, stop replaying.
-                self._rng_restore(snapshot)
+                self.scheduler = pickle.loads(snapshot)
                 self._pending = None
                 break
             results = [EvaluationResult(bool(v), float(f), d, g) for v, f, d, g in
@@ -228,79 +307,116 @@ class MapElites:
         return replayed
 
     @classmethod
-    def resume(cls, checkpoint_path: str | os.PathLike, evaluate: Callable, executor=None,
+    def resume(cls, checkpoint_path, evaluate: Callable, executor=None,
                checkpoint_every: int = 10) -> MapElites:
-        """Rebuild a run from its checkpoint and journal, ready to ``run()`` on.
+        """Rebuild a run from its checkpoint (any path: it may have been carried) and the
+        journal beside it, ready to ``run()`` on.
 
         Raises:
-            ValueError: the checkpoint is missing or unreadable.
+            ValueError: the checkpoint is missing, unreadable or of another kind.
         """
         checkpoint_path = Path(checkpoint_path)
         try:
-            with np.load(checkpoint_path, allow_pickle=False) as npz:
-                arrays = {k: npz[k] for k in npz.files}
-            state = json.loads(str(arrays.pop('state')))
+            with open(checkpoint_path, 'rb') as handle:
+                payload = pickle.load(handle)
+            state, scheduler = payload['state'], payload['scheduler']
         except Exception as exc:
             raise ValueError(f'cannot resume from {checkpoint_path}: {type(exc).__name__}: '
                              f'{exc}; start a fresh run without --resume') from None
-        if state.get('format_version') != CHECKPOINT_FORMAT_VERSION:
-            raise ValueError(f'{checkpoint_path} has checkpoint format '
-                             f'{state.get("format_version")!r}, expected '
+        if state.get('format_version') != CHECKPOINT_FORMAT_VERSION or \
+                state.get('kind') != cls.KIND:
+            raise ValueError(f'{checkpoint_path} is not a {cls.KIND} checkpoint of format '
                              f'{CHECKPOINT_FORMAT_VERSION}; start a fresh run')
-        archive = GridArchive(state['dims'], state['bounds'], state['solution_dim'],
-                              state['extra_fields'])
-        archive.load_state_dict(arrays)
-        es = state['emitter']
-        emitter = MapElitesEmitter(archive, batch_size=es['batch_size'],
-                                   n_initial=es['n_initial'], variation=es['variation'],
-                                   iso_sigma=es['iso_sigma'], line_sigma=es['line_sigma'],
-                                   eta=es['eta'], mutation_rate=es['mutation_rate'],
-                                   seed=es['seed'])
-        emitter.load_state_dict(es)
-        run = cls(archive, emitter, evaluate, executor, checkpoint_path, checkpoint_every)
-        return run.resumed(state)
+        run = cls.__new__(cls)
+        run.scheduler = scheduler
+        run.bounds = np.asarray(state['bounds'], dtype=np.float64)
+        run.config = dict(state['config'])
+        run.seed = int(run.config['seed'])
+        run._start(evaluate, executor, checkpoint_path, checkpoint_every)
+        run.n_evaluations = int(state['n_evaluations'])
+        run.n_batches = int(state['n_batches'])
+        run.n_invalid = int(state['n_invalid'])
+        run.elapsed = float(state['elapsed'])
+        run.info = dict(state.get('info', {}))
+        run._replay_journal()
+        return run
 
-    def resumed(self, state):
-        """Take the counters of a checkpoint's ``state``, then replay the batches the
-        journal holds beyond it; returns this run."""
-        self.n_evaluations = int(state['n_evaluations'])
-        self.n_batches = int(state['n_batches'])
-        self.n_invalid = int(state['n_invalid'])
-        self.elapsed = float(state['elapsed'])
-        self.info = dict(state.get('info', {}))
-        self._replay_journal()
-        return self
+    def _elites(self) -> dict[str, np.ndarray]:
+        """The elites in cell order: solution, objective, measures, generic_reward."""
+        data = self.archive.data(['solution', 'objective', 'measures', 'generic_reward',
+                                  'index'])
+        order = np.argsort(data['index'])
+        return {k: np.asarray(v)[order] for k, v in data.items()}
+
+    def _metadata(self, **values: Any) -> dict:
+        return make_metadata(descriptor_bounds=self.bounds.tolist(),
+                             n_evaluations=self.n_evaluations, n_invalid=self.n_invalid,
+                             seed=self.seed, emitter='iso_line', emitters=self.config['emitters'],
+                             batch_size=self.config['batch_size'], **values)
+
+    def to_archive(self, **metadata: Any) -> Archive:
+        raise NotImplementedError
+
+
+class GridMapElites(MapElites):
+    """MAP-Elites on a pyribs ``GridArchive``: one elite per cell of a regular grid.
+
+    Args:
+        dims: cells per descriptor dimension, e.g. ``(64, 64)``.
+        bounds: ``(low, high)`` per dimension; a descriptor outside is filed into the edge
+            cell.
+        Others: as :class:`MapElites`.
+    """
+
+    KIND = 'grid'
+
+    def __init__(self, dims: Sequence[int], bounds, evaluate: Callable, executor=None,
+                 **kwargs):
+        self.dims = tuple(int(n) for n in dims)
+        if not self.dims or any(n < 1 for n in self.dims):
+            raise ValueError(f'dims must be positive cell counts, e.g. (64, 64); got {dims}')
+        if np.shape(bounds) != (len(self.dims), 2):
+            raise ValueError(f'bounds must have one (low, high) pair per dimension, i.e. '
+                             f'shape ({len(self.dims)}, 2); got shape {np.shape(bounds)}')
+        super().__init__(bounds, evaluate, executor, **kwargs)
+
+    def _make_archive(self, solution_dim: int, seed: int):
+        GridArchive, _, _, _ = ribs_parts()
+        return GridArchive(solution_dim=solution_dim, dims=self.dims,
+                           ranges=self.bounds.tolist(), seed=seed, learning_rate=1.0,
+                           threshold_min=THRESHOLD_MIN, extra_fields=EXTRA_FIELDS)
+
+    @classmethod
+    def resume(cls, checkpoint_path, evaluate: Callable, executor=None,
+               checkpoint_every: int = 10) -> GridMapElites:
+        run = super().resume(checkpoint_path, evaluate, executor, checkpoint_every)
+        run.dims = tuple(int(n) for n in run.archive.dims)
+        return run
 
     def to_archive(self, **metadata: Any) -> Archive:
         """The elites as an :class:`~sela_ros.core.storage.Archive` (for SELA, or to save).
 
         Args:
-            **metadata: simulator settings, descriptor/fitness names, seed, ...; the grid
-                shape, bounds and evaluation count are filled in from this run.
+            **metadata: simulator settings, descriptor/fitness names, ...; the grid shape,
+                bounds and counters are filled in from this run.
         """
-        elites = self.archive.elites()
-        meta = make_metadata(grid_shape=list(self.archive.dims),
-                             descriptor_bounds=self.archive.bounds.tolist(),
-                             n_evaluations=self.n_evaluations,
-                             n_invalid=self.n_invalid,
-                             seed=self.emitter.seed,
-                             emitter=self.emitter.variation)
+        elites = self._elites()
+        meta = self._metadata(grid_shape=list(self.dims))
         meta.update(metadata)
-        return Archive(params=elites['solutions'], descriptors=elites['measures'],
-                       generic_reward=elites['generic_reward'], fitness=elites['objectives'],
-                       metadata=meta)
+        return Archive(params=np.clip(elites['solution'], 0.0, 1.0),
+                       descriptors=elites['measures'], generic_reward=elites['generic_reward'],
+                       fitness=elites['objective'], metadata=meta)
 
 
 def default_run(evaluate: Callable, dims: Sequence[int] = (64, 64),
                 bounds: Sequence[Sequence[float]] = ((-1.0, 1.0), (-1.0, 1.0)),
-                batch_size: int = 100, n_initial: int | None = None, seed: int | None = None,
+                batch_size: int = 100, n_initial: int | None = None, seed: int = 0,
                 executor=None, checkpoint_path=None, checkpoint_every: int = 10,
-                variation: str = 'iso_line') -> MapElites:
-    """A fresh :class:`MapElites` with the project's defaults (grid, iso-line emitter)."""
-    archive = GridArchive(dims, bounds)
-    emitter = MapElitesEmitter(archive, batch_size=batch_size, n_initial=n_initial,
-                               variation=variation, seed=seed)
-    return MapElites(archive, emitter, evaluate, executor, checkpoint_path, checkpoint_every)
+                emitters: int = 1) -> GridMapElites:
+    """A fresh 2-D :class:`GridMapElites` with the project's defaults (iso-line emitters)."""
+    return GridMapElites(dims, bounds, evaluate, executor=executor, batch_size=batch_size,
+                         emitters=emitters, n_initial=n_initial, seed=seed,
+                         checkpoint_path=checkpoint_path, checkpoint_every=checkpoint_every)
 
 
-__all__ = ['MapElites', 'default_run', 'CHECKPOINT_FORMAT_VERSION']
+__all__ = ['CHECKPOINT_FORMAT_VERSION', 'GridMapElites', 'MapElites', 'default_run']

@@ -5,8 +5,9 @@ Example (the shipped archive, see docs/archive.md)::
     sela-build-archive --evaluations 30000 --batch-size 200 --workers 2 --seed 1 \\
         --out sela_ros/data/hexapod_archive.npz --figure docs/figures/archive.png
 
-The paper's 8-D map (final x, y + six duty factors, a CVT archive built with pyribs from
-``requirements-qd.txt``, physics ``sim_bridge.settings.FAST_SETTINGS``)::
+Both maps are built with pyribs (``requirements-qd.txt``): a grid archive for the 2-D one, a
+CVT archive for the paper's 8-D map (final x, y + six duty factors, physics
+``sim_bridge.settings.FAST_SETTINGS``)::
 
     sela-build-archive --descriptor 8d --cells 60000 --evaluations 200000 --workers 1 \\
         --checkpoint ~/.cache/sela_ros/mapbuild/map8d.checkpoint.pkl \\
@@ -39,11 +40,10 @@ from sela_ros.core import N_PARAMS
 from sela_ros.core.storage import Archive
 from sela_ros.qd.evaluators import HexapodEvaluator, SyntheticEvaluator
 from sela_ros.qd.executors import DaskEvaluator, ProcessPoolEvaluator, SerialEvaluator
-from sela_ros.qd.map_elites import MapElites, default_run
+from sela_ros.qd.map_elites import GridMapElites, default_run
 
 DEFAULT_GRID = (64, 64)
 DEFAULT_BOUNDS = (-0.6, 0.6, -0.6, 0.6)
-DESCRIPTOR_NAME = 'final_xy'
 FITNESS_NAME = 'arc_yaw_error'
 #: --descriptor choices: the 2-D grid map and the paper's 8-D CVT map.
 DESCRIPTOR_NAMES = {'2d': 'final_xy', '8d': 'final_xy_duty_factors'}
@@ -82,7 +82,7 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument('--figure', type=Path, default=None,
                         help='also write a heat-map PNG of the archive here')
     parser.add_argument('--checkpoint', type=Path, default=None,
-                        help='checkpoint file (default: OUT with suffix .checkpoint.npz)')
+                        help='checkpoint file (default: OUT with suffix .checkpoint.pkl)')
     parser.add_argument('--checkpoint-every', type=_positive_int, default=5,
                         help='full checkpoint every K batches (default 5; batches in between '
                              'are journalled, so none is lost)')
@@ -94,7 +94,7 @@ def make_parser() -> argparse.ArgumentParser:
                              'build that is still running')
     parser.add_argument('--descriptor', choices=sorted(DESCRIPTOR_NAMES), default='2d',
                         help='2d: final (x, y) on a grid; 8d: final (x, y) + six duty factors '
-                             'on a CVT archive (pyribs, the paper\'s map; default 2d)')
+                             'on a CVT archive (the paper\'s map; default 2d)')
     parser.add_argument('--cells', type=_positive_int, default=10000,
                         help='CVT cells of the 8d map (default 10000)')
     parser.add_argument('--regrid', type=_positive_int, default=None, metavar='CELLS',
@@ -102,8 +102,8 @@ def make_parser() -> argparse.ArgumentParser:
                              'elite found so far carried into it; nothing happens when the '
                              'run already has CELLS cells')
     parser.add_argument('--emitters', type=_positive_int, default=1,
-                        help='iso-line emitters of the 8d map; a batch is emitters x '
-                             'batch-size gaits (default 1)')
+                        help='iso-line emitters; a batch is emitters x batch-size gaits '
+                             '(default 1)')
     parser.add_argument('--dask-scheduler', default=None, metavar='ADDR',
                         help='evaluate on a Dask distributed scheduler, e.g. '
                              'tcp://127.0.0.1:8786, instead of local processes')
@@ -113,8 +113,8 @@ def make_parser() -> argparse.ArgumentParser:
                         metavar=('XMIN', 'XMAX', 'YMIN', 'YMAX'),
                         help='descriptor bounds in metres (default -0.6 0.6 -0.6 0.6)')
     parser.add_argument('--initial', type=_positive_int, default=None,
-                        help='random gaits before variation starts (default 5 batches)')
-    parser.add_argument('--variation', choices=('iso_line', 'polynomial'), default='iso_line')
+                        help='random gaits of the first batch, per emitter (default 5 '
+                             'batches)')
     parser.add_argument('--dt', type=_positive_float, default=None,
                         help='physics time step in s (default 1/240 for 2d, 1/120 for 8d)')
     parser.add_argument('--solver-iterations', type=_positive_int, default=None,
@@ -150,8 +150,7 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
 def _checkpoint_path(args: argparse.Namespace) -> Path:
     if args.checkpoint is not None:
         return args.checkpoint
-    suffix = '.checkpoint.pkl' if args.descriptor == '8d' else '.checkpoint.npz'
-    return args.out.with_name(args.out.stem + suffix)
+    return args.out.with_name(args.out.stem + '.checkpoint.pkl')
 
 
 def _physics(args: argparse.Namespace) -> tuple[float, int]:
@@ -199,10 +198,11 @@ def archive_figure(archive: Archive, path: str | os.PathLike) -> Path:
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from ribs.archives import GridArchive
 
-    from sela_ros.qd.grid_archive import GridArchive
-
-    grid = GridArchive(archive.metadata['grid_shape'], archive.descriptor_bounds)
+    # The builder's own binning, so that each elite is drawn in its cell.
+    grid = GridArchive(solution_dim=1, dims=archive.metadata['grid_shape'],
+                       ranges=archive.descriptor_bounds.tolist())
     cells = grid.index_of(archive.descriptors)
     fitness = np.full(grid.cells, np.nan)
     dyaw = np.full(grid.cells, np.nan)
@@ -214,7 +214,7 @@ def archive_figure(archive: Archive, path: str | os.PathLike) -> Path:
     panels = [(fitness, 'fitness: -|yaw - arc yaw| (rad)', 'viridis', (-np.pi, 0)),
               (dyaw, 'dyaw of the elite (rad)', 'twilight_shifted', (-np.pi, np.pi))]
     for ax, (values, title, cmap, (vmin, vmax)) in zip(axes, panels):
-        image = ax.imshow(values.reshape(grid.dims).T, origin='lower', extent=extent,
+        image = ax.imshow(values.reshape(tuple(grid.dims)).T, origin='lower', extent=extent,
                           cmap=cmap, vmin=vmin, vmax=vmax, interpolation='nearest')
         ax.set_xlabel('final x (m, forward)')
         ax.set_ylabel('final y (m, left)')
@@ -312,7 +312,7 @@ def main(argv: list[str] | None = None) -> int:
 
                 resume = CVTMapElites.resume
             else:
-                resume = MapElites.resume
+                resume = GridMapElites.resume
             try:
                 run = resume(checkpoint, evaluate, executor, args.checkpoint_every)
             except ValueError as exc:
@@ -335,7 +335,7 @@ def main(argv: list[str] | None = None) -> int:
                               n_initial=args.initial or 5 * args.batch_size, seed=args.seed,
                               executor=executor, checkpoint_path=checkpoint,
                               checkpoint_every=args.checkpoint_every,
-                              variation=args.variation)
+                              emitters=args.emitters)
             run.info = {'settings': settings, 'seed': args.seed}
         remaining = 0 if args.export else max(0, args.evaluations - run.n_evaluations)
         start = time.perf_counter()
@@ -350,10 +350,9 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         executor.close()
 
-    batch_size = run.config['batch_size'] if args.descriptor == '8d' else run.emitter.batch_size
     archive = run.to_archive(**settings, descriptor_name=descriptor,
                              fitness_name=FITNESS_NAME, seed=run.info.get('seed', args.seed),
-                             damage='intact', batch_size=batch_size,
+                             damage='intact', batch_size=run.config['batch_size'],
                              evaluator='synthetic' if args.synthetic else 'hexapod')
     archive.save(args.out)
     size = args.out.stat().st_size

@@ -19,20 +19,28 @@ SPECS = node_parameters()  # every node's specs, as docs/parameters.md lists the
 
 
 # Start-up values other than config/sela.yaml's, so that a dump that did not load back shows.
-# The adapter's are given under their earlier names: read as the new ones.
+# Some of the adapter's are given under their earlier names: read as the new ones. A 0 given
+# for a parameter that spells it with a word is read as the word; a number given for one whose
+# default is a word is a number.
 CHANGED = {
-    'sim_bridge': {'seed': 7, 'observation.noise_std': 0.02, 'right_on_fall': True},
+    'sim_bridge': {'seed': 7, 'observation.noise_std': 0.02, 'right_on_fall': True,
+                   'publish_max_rate': 0},
     'planner': {'planner.inflation': 0.2, 'map.obstacles': '[0.8, 0.8, 1.2, 1.2]'},
     'damage_detector': {'detection.threshold': 0.2, 'heartbeat.nodes': '[planner]'},
-    'sela_adapter': {'priors': 'none', 'priors.max.misfit': 0.5, 'goal.eps': 0.15},
+    'sela_adapter': {'priors': 'none', 'priors.max.misfit': 0.5, 'goal.eps': 0.15,
+                     'gp.kernel.sigma': 0.25, 'planner.horizon': 0,
+                     'priors.weights.sd': 'none'},
 }
 
 
 EXPECTED = {
-    'sim_bridge': {'seed': 7, 'observation.noise_std': 0.02, 'right_on_fall': True},
+    'sim_bridge': {'seed': 7, 'observation.noise_std': 0.02, 'right_on_fall': True,
+                   'publish_max_rate': 'none'},
     'planner': {'planner.inflation': 0.2, 'map.obstacles': [0.8, 0.8, 1.2, 1.2]},
     'damage_detector': {'detection.threshold': 0.2, 'heartbeat.nodes': ['planner']},
-    'sela_adapter': {'priors.tables': 'none', 'priors.max_misfit': 0.5, 'goal.eps': 0.15},
+    'sela_adapter': {'priors.tables': 'none', 'priors.max_misfit': 0.5, 'goal.eps': 0.15,
+                     'gp.kernel.sigma': 0.25, 'planner.horizon': 'auto',
+                     'fall.kernel.sigma': 'auto', 'priors.weights.sd': 'none'},
 }
 
 
@@ -77,6 +85,8 @@ def test_a_dump_loads_back_to_the_same_values(node, tmp_path):
             first.stop()
         for name, value in EXPECTED[node].items():
             assert values[name] == value, name
+        warned = any('0 is spelled' in log for log in first.logs().values())
+        assert warned == (node in ('sim_bridge', 'sela_adapter')), first.logs()
         for spec in SPECS[node]:
             assert spec.name in values and (spec.renamed_from or '') not in values
         path = tmp_path / f'{node}.yaml'
@@ -91,5 +101,6 @@ def test_a_dump_loads_back_to_the_same_values(node, tmp_path):
         finally:
             again.stop()
         assert reloaded == values
+        assert not any('0 is spelled' in log for log in again.logs().values()), again.logs()
     finally:
         client.close()

@@ -8,6 +8,7 @@ import time
 import pytest
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters
+from rclpy.parameter import parameter_value_to_python
 from std_msgs.msg import String
 
 from sela_ros.nodes.interface import LATCHED_QOS
@@ -88,6 +89,39 @@ def test_parameters_are_described_and_take_an_integer_for_a_double(client):
         nodes.stop()
 
 
+def test_a_word_or_a_number_is_taken_at_run_time_and_a_wrong_word_refused(client):
+    """``ros2 param set /sim_bridge publish_max_rate none`` (no cap), a number, or the 0 that
+    meant none (read as none); a misspelt word is refused and the node runs on."""
+    nodes = NodeProcesses(names=('sim_bridge',))
+    get = client.node.create_client(GetParameters, '/sim_bridge/get_parameters')
+
+    def rate():
+        (value,) = client.call(get, GetParameters.Request(names=['publish_max_rate']),
+                               timeout=60).values
+        return parameter_value_to_python(value)
+
+    try:
+        assert rate() == 5.0
+        word = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='none')
+        assert _set(client, 'sim_bridge', 'publish_max_rate', word).successful
+        assert rate() == 'none'
+        three = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=3)
+        assert _set(client, 'sim_bridge', 'publish_max_rate', three).successful
+        assert rate() == 3.0
+        zero = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.0)
+        assert _set(client, 'sim_bridge', 'publish_max_rate', zero).successful
+        assert rate() == 'none'
+        wrong = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='off')
+        result = _set(client, 'sim_bridge', 'publish_max_rate', wrong)
+        assert not result.successful
+        assert result.reason == ("publish_max_rate must be a number in [0, 1000] Hz or none, "
+                                 "got 'off'")
+        assert rate() == 'none' and all(nodes.alive().values()), nodes.logs()
+    finally:
+        nodes.stop()
+    assert 'publish_max_rate: 0 is spelled none now' in nodes.logs()['sim_bridge.log']
+
+
 @pytest.mark.parametrize('node, args, message', [
     ('sim_bridge', ['-p', 'seed:=abc'],
      "[ERROR] [sim_bridge]: seed must be an integer in [0, 2147483647], got 'abc' "
@@ -98,6 +132,9 @@ def test_parameters_are_described_and_take_an_integer_for_a_double(client):
     ('damage_detector', ['-p', 'detection.window:=0'],
      '[ERROR] [damage_detector]: Parameter detection.window out of range. Min: 1, Max: 1000, '
      'value: 0 (not started)'),
+    ('sela_adapter', ['-p', 'planner.horizon:=automatic'],
+     "[ERROR] [sela_adapter]: planner.horizon must be an integer in [1, 2] or auto, got "
+     "'automatic' (not started)"),
     ('sim_bridge', ['-p', 'sim.gui:=true'],
      '[ERROR] [sim_bridge]: sim.gui needs a display (DISPLAY and WAYLAND_DISPLAY are not set); '
      'use sim.gui:=false for headless DIRECT mode (not started)'),

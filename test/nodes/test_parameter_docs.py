@@ -48,10 +48,32 @@ def test_the_adapters_defaults_are_the_cores():
     specs = {s.name: s.default for s in adapter_params.PARAMETERS}
     config = SELAConfig().to_dict()
     for name in adapter_params.SELA_KEYS:
-        # The archive's own value where the spec says auto (0): checked against the shipped
+        # The archive's own value where the spec says auto: checked against the shipped
         # archive in test_launch_and_config.
-        if specs[name] != 0:
+        if specs[name] != 'auto':
             assert specs[name] == config[adapter_params.SELA_NAMES.get(name, name)], name
     stepper = StepperConfig()
     for name, field in adapter_params.stepper_fields().items():
         assert specs[name] == getattr(stepper, field), name
+
+
+def test_auto_and_none_are_spelled_as_words_everywhere():
+    """Where a parameter's number can also mean "the archive's" or "off", the YAML, the docs
+    and the spec say it with the word; a 0 there is read as the word, with a warning."""
+    words = {(node, spec.name): spec.word for node, specs in node_parameters().items()
+             for spec in specs if spec.word}
+    assert words == {('sim_bridge', 'publish_max_rate'): 'none',
+                     ('sela_adapter', 'gp.kernel.sigma'): 'auto',
+                     ('sela_adapter', 'fall.kernel.sigma'): 'auto',
+                     ('sela_adapter', 'planner.horizon'): 'auto',
+                     ('sela_adapter', 'priors.max_misfit'): 'none',
+                     ('sela_adapter', 'priors.weights.sd'): 'none'}
+    shipped = _yaml()
+    docs = (ROOT / 'docs' / 'parameters.md').read_text()
+    for (node, name), word in words.items():
+        spec = next(s for s in node_parameters()[node] if s.name == name)
+        assert f'{word} =' in spec.description or f'{word}:' in spec.description, name
+        assert '0 =' not in spec.description and '(0:' not in spec.description, name
+        if spec.default == word:
+            assert shipped[node][name] == word, name
+        assert f'or {word} |' in docs.split(f'| `{name}` |', 1)[1].split('\n', 1)[0], name

@@ -1,4 +1,4 @@
-"""Property-based tests of the parameter validators used by every node's set-callback."""
+"""Property-based tests of the parameter check used by every node's set-callback."""
 import math
 import sys
 
@@ -6,62 +6,12 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from sela_ros.core.detection import DetectorConfig
-from sela_ros.nodes.params import (
-    STARTUP_ONLY,
-    Spec,
-    check,
-    coerce,
-    first_problem,
-    non_negative_int,
-    non_negative_number,
-    positive_int,
-    positive_number,
-    startup_only,
-    string,
-)
+from sela_ros.nodes.params import Spec, check, coerce
 from sim_bridge.damage import LEG_NAMES
 from sim_bridge.node import PARAMETERS, damage_rule
 
 anything = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(),
                      st.lists(st.integers(), max_size=3))
-
-
-@given(anything)
-def test_positive_number_accepts_exactly_finite_positive_numbers(value):
-    ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
-          and math.isfinite(value) and value > 0)
-    assert (positive_number(' (m)')(value) is None) == ok
-
-
-@given(anything)
-def test_non_negative_number(value):
-    ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
-          and math.isfinite(value) and value >= 0)
-    assert (non_negative_number()(value) is None) == ok
-
-
-@given(anything)
-def test_integer_rules(value):
-    is_int = isinstance(value, int) and not isinstance(value, bool)
-    assert (positive_int(value) is None) == (is_int and value > 0)
-    assert (non_negative_int(value) is None) == (is_int and value >= 0)
-
-
-@given(anything)
-def test_string_and_startup_only(value):
-    assert (string(value) is None) == isinstance(value, str)
-    assert startup_only(value) == STARTUP_ONLY
-
-
-@given(st.lists(st.tuples(st.sampled_from(['a', 'b', 'c']), anything), max_size=6))
-def test_first_problem_names_the_first_refused_parameter(changes):
-    rules = {'a': positive_int, 'b': string}
-    problem = first_problem(changes, rules)
-    refused = [n for n, v in changes if n in rules and rules[n](v)]
-    if refused:
-        assert problem.startswith(refused[0] + ' ')
-    else:
-        assert problem is None
 
 
 @given(st.sampled_from(LEG_NAMES), st.text(max_size=12))
@@ -120,6 +70,35 @@ def test_check_runs_the_extra_rule_and_allows_not_set_only_without_default():
     assert check(Spec('x', 1.0, ''), None) == 'must be a number, got None'
     assert Spec('seed', 0, '', low=0, high=2**31 - 1).constraints() == (
         'an integer in [0, 2147483647]')
+
+
+@given(anything)
+def test_a_parameter_with_a_word_takes_the_word_or_its_kind_of_value_and_nothing_else(value):
+    spec = Spec('gp.kernel.sigma', 'auto', '', low=0.0, high=100.0, kind='double', word='auto')
+    number = (isinstance(value, (int, float)) and not isinstance(value, bool)
+              and math.isfinite(value) and 0 <= value <= 100)
+    assert (check(spec, value) is None) == (number or value == 'auto')
+    if isinstance(value, str) and value != 'auto':
+        assert check(spec, value) == f'must be a number in [0, 100] or auto, got {value!r}'
+
+
+def test_the_0_that_meant_a_word_is_read_as_the_word_and_nothing_else_is():
+    from sela_ros.nodes.params import word_warning, zero_for_word
+
+    rate = Spec('publish_max_rate', 5.0, '', low=0.0, high=1000.0, unit=' Hz', word='none')
+    horizon = Spec('planner.horizon', 'auto', '', low=1, high=2, kind='integer', word='auto')
+    assert rate.constraints() == 'a number in [0, 1000] Hz or none'
+    assert horizon.constraints() == 'an integer in [1, 2] or auto'
+    for spec, word in ((rate, 'none'), (horizon, 'auto')):
+        for zero in (0, 0.0):
+            assert zero_for_word(spec, zero) and coerce(spec, zero) == word
+            assert check(spec, coerce(spec, zero)) is None
+        assert not zero_for_word(spec, False) and coerce(spec, word) == word
+        assert f'give {word} instead' in word_warning(spec)
+    assert coerce(rate, 3) == 3.0 and coerce(horizon, 2) == 2
+    assert check(horizon, 3) == 'must be an integer in [1, 2] or auto, got 3'
+    assert check(horizon, 'none') == "must be an integer in [1, 2] or auto, got 'none'"
+    assert coerce(Spec('x', 0.5, '', low=0.0), 0) == 0.0  # no word: 0 is a number
 
 
 @given(st.floats(allow_nan=True), st.integers(-3, 3), st.integers(-3, 3),

@@ -1,4 +1,8 @@
-"""MAP-Elites: grid insertion, emitter determinism, executors, checkpoints and SIGKILL resume."""
+"""The 2-D map with pyribs: grid insertion, determinism, executors, checkpoints and SIGKILL
+resume, and a build that SELA takes.
+
+pyribs is a map-builder extra (requirements-qd.txt) that `make venv` installs: without it
+these tests fail, they never skip."""
 import os
 import signal
 import subprocess
@@ -10,43 +14,50 @@ import numpy as np
 import pytest
 
 from sela_ros.core.storage import load_archive
-from sela_ros.qd.emitter import MapElitesEmitter
 from sela_ros.qd.evaluators import EvaluationResult, SyntheticEvaluator, arc_fitness
 from sela_ros.qd.executors import DaskEvaluator, ProcessPoolEvaluator, SerialEvaluator
-from sela_ros.qd.grid_archive import GridArchive
-from sela_ros.qd.map_elites import MapElites, default_run
+from sela_ros.qd.map_elites import GridMapElites, default_run
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 def test_grid_rejects_bad_shapes():
+    evaluate = SyntheticEvaluator()
     with pytest.raises(ValueError, match='one \\(low, high\\) pair per dimension'):
-        GridArchive((4, 4), [(0, 1)])
+        GridMapElites((4, 4), [(0, 1)], evaluate)
     with pytest.raises(ValueError, match='low < high'):
-        GridArchive((4, 4), [(0, 1), (1, 0)])
+        GridMapElites((4, 4), [(0, 1), (1, 0)], evaluate)
     with pytest.raises(ValueError, match='positive cell counts'):
-        GridArchive((0, 4), [(0, 1), (0, 1)])
+        GridMapElites((0, 4), [(0, 1), (0, 1)], evaluate)
+    with pytest.raises(ValueError, match='batch_size'):
+        GridMapElites((4, 4), [(0, 1), (0, 1)], evaluate, batch_size=0)
 
 
-def test_grid_keeps_best_per_cell():
-    grid = GridArchive((4, 4), [(0, 1), (0, 1)], solution_dim=2)
-    gr = np.zeros((4, 3))
-    sols = np.array([[0.1, 0.1], [0.2, 0.2], [0.3, 0.3], [0.4, 0.4]])
-    # three candidates in the same cell (0.1, 0.1); the middle one is best.
-    meas = np.array([[0.1, 0.1], [0.12, 0.1], [0.1, 0.15], [0.9, 0.9]])
-    status = grid.add(sols, [-1.0, -0.2, -0.5, -3.0], meas, generic_reward=gr)
-    assert status.tolist() == [2, 1, 0, 2]
-    assert grid.num_elites == 2
-    cell = grid.index_of([[0.1, 0.1]])[0]
-    assert grid.objectives[cell] == -0.2
-    np.testing.assert_array_equal(grid.solutions[cell], [0.2, 0.2])
-    # worse later: not added; better later: replaces
-    assert grid.add([[0.5, 0.5]], [-0.3], [[0.05, 0.05]], generic_reward=gr[:1])[0] == 0
-    assert grid.add([[0.6, 0.6]], [-0.1], [[0.05, 0.05]], generic_reward=gr[:1])[0] == 1
-    np.testing.assert_array_equal(grid.solutions[cell], [0.6, 0.6])
-    # non-finite objective (a fall) is rejected; out-of-bounds goes to the edge cell
-    assert grid.add([[0.7, 0.7]], [-np.inf], [[0.5, 0.5]], generic_reward=gr[:1])[0] == 0
-    assert grid.index_of([[5.0, -5.0]])[0] == grid.index_of([[0.99, 0.0]])[0]
+def _told(run, measures, objectives, valid=None):
+    """Ask a batch of len(measures) and tell these results for it."""
+    solutions = run.ask()
+    assert len(solutions) == len(measures)
+    valid = [True] * len(measures) if valid is None else valid
+    return run.tell(solutions, [EvaluationResult(v, f, np.asarray(m, float), np.zeros(3))
+                                for v, f, m in zip(valid, objectives, measures)])
+
+
+def test_grid_keeps_the_best_per_cell_and_no_fall():
+    run = GridMapElites((4, 4), [(0, 1), (0, 1)], SyntheticEvaluator(), batch_size=4,
+                        n_initial=4, seed=0)
+    # three candidates in the same cell; the middle one is best
+    assert _told(run, [[0.1, 0.1], [0.12, 0.1], [0.1, 0.15], [0.9, 0.9]],
+                 [-1.0, -0.2, -0.5, -3.0]) == 2
+    best = run.archive.retrieve_single([0.1, 0.1])[1]
+    assert best['objective'] == pytest.approx(-0.2)
+    # a fall (even with a finite fitness) never takes a cell; out of bounds: the edge cell
+    assert _told(run, [[0.5, 0.5], [0.6, 0.6], [5.0, -5.0], [0.05, 0.05]],
+                 [-0.1, -0.1, -0.1, -0.1], valid=[False, True, True, True]) == 2
+    assert run.n_invalid == 1 and run.archive.stats.num_elites == 4
+    assert run.archive.retrieve_single([0.1, 0.1])[1]['objective'] == pytest.approx(-0.1)
+    assert run.archive.index_of_single([5.0, -5.0]) == run.archive.index_of_single([0.99, 0.0])
+    with pytest.raises(ValueError, match='ask'):
+        run.tell(np.zeros((4, 36)), [])
 
 
 def test_arc_fitness():
@@ -58,36 +69,6 @@ def test_arc_fitness():
     assert arc_fitness([0.5, 0.0, np.pi]) == pytest.approx(-np.pi)
 
 
-def _emitter(seed, variation='iso_line'):
-    grid = GridArchive((8, 8), [(-1, 1), (-1, 1)])
-    evaluate = SyntheticEvaluator()
-    emitter = MapElitesEmitter(grid, batch_size=20, n_initial=40, variation=variation, seed=seed)
-    batches = []
-    for _ in range(5):
-        sols = emitter.ask()
-        results = [evaluate(s) for s in sols]
-        grid.add(sols, [r.fitness for r in results], [r.descriptor for r in results],
-                 generic_reward=[r.generic_reward for r in results])
-        batches.append(sols)
-    return np.concatenate(batches)
-
-
-@pytest.mark.parametrize('variation', ['iso_line', 'polynomial'])
-def test_emitter_is_deterministic_with_seed(variation):
-    a, b, c = _emitter(3, variation), _emitter(3, variation), _emitter(4, variation)
-    np.testing.assert_array_equal(a, b)
-    assert not np.array_equal(a, c)
-    assert a.min() >= 0.0 and a.max() <= 1.0
-
-
-def test_emitter_rejects_bad_arguments():
-    grid = GridArchive((8, 8), [(-1, 1), (-1, 1)])
-    with pytest.raises(ValueError, match='variation must be one of'):
-        MapElitesEmitter(grid, variation='gaussian')
-    with pytest.raises(ValueError, match='batch_size'):
-        MapElitesEmitter(grid, batch_size=0)
-
-
 def _run(executor, n=400, **kwargs):
     run = default_run(SyntheticEvaluator(), dims=(16, 16), batch_size=50, seed=7,
                       executor=executor, **kwargs)
@@ -95,21 +76,60 @@ def _run(executor, n=400, **kwargs):
     return run
 
 
-def _assert_same(a: MapElites, b: MapElites):
-    assert a.n_evaluations == b.n_evaluations
-    for key, value in a.archive.state_dict().items():
-        np.testing.assert_array_equal(value, b.archive.state_dict()[key], err_msg=key)
+def _elites(run):
+    data = run.archive.data()
+    order = np.argsort(data['index'])
+    return {k: np.asarray(v)[order] for k, v in data.items()}
+
+
+def _assert_same(a, b):
+    assert a.n_evaluations == b.n_evaluations and a.n_batches == b.n_batches
+    ea, eb = _elites(a), _elites(b)
+    assert ea.keys() == eb.keys()
+    for key in ea:
+        np.testing.assert_array_equal(ea[key], eb[key], err_msg=key)
+    # the same random streams from here on: the next batches are the same
+    np.testing.assert_array_equal(a.ask(), b.ask())
 
 
 def test_run_fills_archive_and_discards_falls():
     run = _run(SerialEvaluator(), n=1000)
-    assert run.n_evaluations == 1000
-    assert run.archive.num_elites > 50
-    assert np.all(np.isfinite(run.archive.objectives[run.archive.occupied]))
+    assert run.n_evaluations == 1000 and run.n_invalid > 0
+    assert run.archive.stats.num_elites > 50
     archive = run.to_archive(**SyntheticEvaluator().settings(), descriptor_name='final_xy',
                              fitness_name='arc_yaw_error')
-    assert len(archive) == run.archive.num_elites
+    assert len(archive) == run.archive.stats.num_elites
+    assert np.all(np.isfinite(archive.fitness)) and archive.fitness.min() >= -np.pi
     assert archive.metadata['n_evaluations'] == 1000
+    assert archive.metadata['grid_shape'] == [16, 16]
+    # the falls (synthetic: params 0 and 1 above 0.95) never enter the archive
+    assert not np.any((archive.params[:, 0] > 0.95) & (archive.params[:, 1] > 0.95))
+
+
+def test_a_seed_gives_the_same_map_and_another_seed_another():
+    a, b = _run(SerialEvaluator()), _run(SerialEvaluator())
+    _assert_same(a, b)
+    other = default_run(SyntheticEvaluator(), dims=(16, 16), batch_size=50, seed=8)
+    other.run(400, progress=False)
+    assert not np.array_equal(_elites(a)['solution'], _elites(other)['solution'])
+
+
+def test_a_small_2d_build_is_an_archive_sela_takes(tmp_path):
+    from sela_ros.core.mission import make_sela
+
+    run = default_run(SyntheticEvaluator(), dims=(12, 12), bounds=((-1, 1), (-1, 1)),
+                      batch_size=40, n_initial=80, seed=3)
+    run.run(400, progress=False)
+    path = run.to_archive(**SyntheticEvaluator().settings(), descriptor_name='final_xy',
+                          fitness_name='arc_yaw_error').save(tmp_path / 'map.npz')
+    archive = load_archive(path, expected_settings=SyntheticEvaluator().settings())
+    assert len(archive) == run.archive.stats.num_elites and archive.descriptors.shape[1] == 2
+    assert np.all((archive.params >= 0) & (archive.params <= 1))
+    sela = make_sela(archive)
+    assert sela.config.gp_kernel_sigma == 0.1 and sela.config.planner_horizon == 1
+    sela.set_goal([1.0, 0.0])
+    decision = sela.ask([0.0, 0.0, 0.0])
+    assert 0 <= decision.index < len(archive)
 
 
 def test_process_pool_matches_serial():
@@ -136,44 +156,44 @@ def test_dask_local_cluster_matches_serial():
 
 def test_checkpoint_resume_in_process(tmp_path):
     full = _run(SerialEvaluator(), n=600)
-    ckpt = tmp_path / 'ck.npz'
+    ckpt = tmp_path / 'ck.pkl'
     part = _run(SerialEvaluator(), n=250, checkpoint_path=ckpt, checkpoint_every=2)
     assert part.n_evaluations == 250
-    resumed = MapElites.resume(ckpt, SyntheticEvaluator(), SerialEvaluator(),
-                               checkpoint_every=2)
+    resumed = GridMapElites.resume(ckpt, SyntheticEvaluator(), SerialEvaluator(),
+                                   checkpoint_every=2)
     assert resumed.n_evaluations == 250
     resumed.run(600, progress=False)
     _assert_same(full, resumed)
 
 
 def test_journal_replays_batches_after_last_checkpoint(tmp_path):
-    ckpt = tmp_path / 'ck.npz'
+    ckpt = tmp_path / 'ck.pkl'
     run = default_run(SyntheticEvaluator(), dims=(16, 16), batch_size=50, seed=7,
                       checkpoint_path=ckpt, checkpoint_every=4)
     for _ in range(7):  # checkpoint after batch 4, batches 5-7 journalled only
         run.step()
     assert len(list(run.journal_dir.glob('batch_*.npz'))) == 3
-    resumed = MapElites.resume(ckpt, SyntheticEvaluator(), checkpoint_every=4)
+    resumed = GridMapElites.resume(ckpt, SyntheticEvaluator(), checkpoint_every=4)
     assert resumed.n_batches == 7 and resumed.n_evaluations == 350
-    _assert_same(run, resumed)
+    _assert_same(run, resumed)  # which asks a batch of each: resume afresh to go on
+    resumed = GridMapElites.resume(ckpt, SyntheticEvaluator(), checkpoint_every=4)
     resumed.step()  # batch 8: a checkpoint, which prunes the journal
     assert not list(run.journal_dir.glob('batch_*.npz'))
 
 
-def test_resume_rejects_garbage(tmp_path):
-    path = tmp_path / 'ck.npz'
+def test_resume_rejects_garbage_and_cvt_checkpoints(tmp_path):
+    from sela_ros.qd.cvt import CVTMapElites
+
+    path = tmp_path / 'ck.pkl'
     path.write_bytes(b'garbage')
     with pytest.raises(ValueError, match='cannot resume'):
-        MapElites.resume(path, SyntheticEvaluator())
-
-
-def test_invalid_results_are_counted():
-    grid = GridArchive((4, 4), [(-1, 1), (-1, 1)])
-    run = MapElites(grid, MapElitesEmitter(grid, batch_size=2, seed=0), SyntheticEvaluator())
-    sols = run.ask()
-    run.tell(sols, [EvaluationResult(False, 0.0, np.zeros(2), np.zeros(3)),
-                    EvaluationResult(True, -0.1, np.zeros(2), np.zeros(3))])
-    assert run.n_invalid == 1 and grid.num_elites == 1
+        GridMapElites.resume(path, SyntheticEvaluator())
+    eight = SyntheticEvaluator(descriptor='final_xy_duty_factors')
+    bounds = ((-1.0, 1.0), (-1.0, 1.0)) + ((0.0, 1.0),) * 6
+    cvt = CVTMapElites(np.random.default_rng(0).random((8, 8)), bounds, eight, batch_size=5)
+    cvt.step()
+    with pytest.raises(ValueError, match='not a grid checkpoint'):
+        GridMapElites.resume(cvt.save_checkpoint(tmp_path / 'cvt.pkl'), SyntheticEvaluator())
 
 
 def _cli(out, ckpt, *extra):
@@ -188,10 +208,10 @@ def _cli(out, ckpt, *extra):
 def test_sigkill_then_resume_matches_uninterrupted(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(REPO))
     reference = tmp_path / 'ref.npz'
-    subprocess.run(_cli(reference, tmp_path / 'ref_ck.npz'), check=True, cwd=REPO, env=env,
+    subprocess.run(_cli(reference, tmp_path / 'ref_ck.pkl'), check=True, cwd=REPO, env=env,
                    timeout=120, capture_output=True)
 
-    out, ckpt = tmp_path / 'killed.npz', tmp_path / 'killed_ck.npz'
+    out, ckpt = tmp_path / 'killed.npz', tmp_path / 'killed_ck.pkl'
     proc = subprocess.Popen(_cli(out, ckpt), cwd=REPO, env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     journal = Path(str(ckpt) + '.journal')
@@ -210,7 +230,7 @@ def test_sigkill_then_resume_matches_uninterrupted(tmp_path):
     assert proc.returncode == -signal.SIGKILL
     assert not out.exists()
 
-    killed_at = MapElites.resume(ckpt, SyntheticEvaluator())
+    killed_at = GridMapElites.resume(ckpt, SyntheticEvaluator())
     assert 0 < killed_at.n_evaluations < 1500
     subprocess.run(_cli(out, ckpt, '--resume'), check=True, cwd=REPO, env=env, timeout=120,
                    capture_output=True)

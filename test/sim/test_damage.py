@@ -29,6 +29,14 @@ def test_combination_and_defaults():
     assert hash(spec) == hash(parse_damage(spec.canonical()))
 
 
+def test_a_weakened_motor_gives_a_share_of_its_torque():
+    spec = parse_damage('weaken:rear_right.hip_pitch=0.25,weaken:front_left.knee')
+    assert spec.weakened == (('front_left', 'knee', 0.1), ('rear_right', 'hip_pitch', 0.25))
+    assert spec.torque_share('rear_right', 'hip_pitch') == 0.25
+    assert spec.torque_share('rear_right', 'knee') == 1.0 and not spec.is_intact
+    assert spec.canonical() == 'weaken:front_left.knee=0.1,weaken:rear_right.hip_pitch=0.25'
+
+
 def test_order_does_not_matter():
     a = parse_damage('remove:rear_right,remove:front_left,block:middle_left.hip_yaw=0.2')
     b = parse_damage('block:middle_left.hip_yaw=0.2,remove:front_left,remove:rear_right')
@@ -40,7 +48,8 @@ def test_order_does_not_matter():
     ('shorten:leg7', LEG_NAMES),
     ('block:front_left.ankle', JOINT_NAMES),
     ('block:front_left', JOINT_NAMES),
-    ('break:front_left', ('remove', 'shorten', 'block')),
+    ('break:front_left', ('remove', 'shorten', 'block', 'weaken')),
+    ('weaken:front_left.ankle=0.2', JOINT_NAMES),
 ])
 def test_unknown_names_list_valid_ones(text, names):
     with pytest.raises(DamageSpecError) as info:
@@ -55,6 +64,9 @@ def test_unknown_names_list_valid_ones(text, names):
     'block:front_left.knee=1.0', 'block:front_left.knee=nan',
     'remove:front_left,shorten:front_left', 'remove:rear_left,block:rear_left.knee',
     'block:front_left.knee=0.1,block:front_left.knee=0.2',
+    'weaken:front_left.knee=1.0', 'weaken:front_left.knee=-0.1', 'weaken:front_left.knee=x',
+    'remove:front_left,weaken:front_left.knee', 'block:rear_left.knee,weaken:rear_left.knee',
+    'weaken:front_left.knee=0.1,weaken:front_left.knee=0.2',
 ])
 def test_bad_values(text):
     with pytest.raises(DamageSpecError):
@@ -72,6 +84,8 @@ _item = st.one_of(
     st.tuples(_legs, st.floats(0.05, 1.0)).map(lambda t: f'shorten:{t[0]}:{t[1]!r}'),
     st.tuples(_legs, st.sampled_from(JOINT_NAMES), st.floats(-0.7, 0.7)).map(
         lambda t: f'block:{t[0]}.{t[1]}={t[2]!r}'),
+    st.tuples(_legs, st.sampled_from(JOINT_NAMES), st.floats(0.0, 0.99)).map(
+        lambda t: f'weaken:{t[0]}.{t[1]}={t[2]!r}'),
 )
 
 

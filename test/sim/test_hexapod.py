@@ -220,6 +220,22 @@ def test_block_keeps_joint_at_angle(intact_outcome):
     assert np.linalg.norm(out.generic_reward - intact_outcome.generic_reward) > 0.01
 
 
+def test_a_limp_joint_lags_its_commands_and_changes_the_walk(intact_outcome):
+    def lag(damage):
+        with hx.Hexapod(damage=damage) as robot:
+            index = robot.joint_names.index('front_left.hip_pitch')
+            seen = []
+            out = robot.execute(STRAIGHT, callback=lambda t, pose, q, v: seen.append(q[index]))
+            return np.array(seen), out
+
+    followed, _ = lag('intact')
+    limp, weak = lag('weaken:front_left.hip_pitch=0.0')
+    # No torque: the joint is only dragged along by the body and the ground, it does not
+    # follow the gait's commands as the intact one does.
+    assert np.mean(np.abs(limp - followed)) > 0.1
+    assert np.linalg.norm(weak.generic_reward - intact_outcome.generic_reward) > 0.01
+
+
 def test_set_damage_keeps_pose(sim):
     sim.set_damage('intact')
     sim.reset()

@@ -28,13 +28,12 @@ ROS-free, and no simulator: ``make priors`` (``scripts/build_priors.py``) builds
 from __future__ import annotations
 
 import hashlib
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from sela_ros.core.storage import NpzTooLarge, check_npz_size
+from sela_ros.core.storage import NpzTooLarge, atomic_write, check_npz_size
 from sela_ros.core.validation import ImplausibleOutcome, check_generic_rewards
 
 #: Scale of a table's prediction error for a gait chained from the last one (x, y in metres,
@@ -181,7 +180,7 @@ class DamagePriors:
             fall_indices, fallen: every step's gait and whether it fell.
             max_misfit: a table whose median squared error (units of RESIDUAL_SCALE) over the
                 steps is above this is not used (of an even number of steps, the lower of the
-                two middle errors).
+                two middle errors); None: no table is.
             standing: ``(N,)`` which of the learnt steps started from a standing start (empty:
                 none). Their errors weigh :data:`STANDING_PRECISION` times more, and a table
                 that reproduced all of them (:data:`REPRODUCED`) is used up to
@@ -227,26 +226,22 @@ class DamagePriors:
         loglik += np.sum(np.where(fallen, np.log(p), np.log1p(-p)), axis=1)
         best = int(np.argmax(loglik))
         reproduced = bool(best and standing.any() and np.all(q[best, standing] / k < REPRODUCED))
-        if max_misfit > 0 and reproduced:
+        if max_misfit is not None and reproduced:
             max_misfit = max(max_misfit, max_misfit_reproduced)
-        if best == 0 or misfit[best] > max_misfit:
+        if best == 0 or max_misfit is None or misfit[best] > max_misfit:
             return Selection(None, 'intact', float(misfit[0]))
         return Selection(best - 1, self.names[best - 1], float(misfit[best]), reproduced)
 
     def save(self, path) -> None:
         """Write the tables (``.npz``; atomic: a reader never sees half a file)."""
-        path = Path(path)
-        tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
         chained = {} if self.chained_runs is None else {
             'chained_runs': np.asarray(self.chained_runs).astype(np.uint16),
             'chained_falls': np.asarray(self.chained_falls).astype(np.uint16)}
-        with open(tmp, 'wb') as handle:
-            np.savez_compressed(handle, names=np.array(self.names),
-                                generic_reward=self.generic_reward.astype(np.float32),
-                                fallen=self.fallen.astype(bool),
-                                archive_checksum=np.array(self.archive_checksum),
-                                format_version=np.array(FORMAT_VERSION), **chained)
-        os.replace(tmp, path)
+        atomic_write(path, lambda handle: np.savez_compressed(
+            handle, names=np.array(self.names),
+            generic_reward=self.generic_reward.astype(np.float32),
+            fallen=self.fallen.astype(bool), archive_checksum=np.array(self.archive_checksum),
+            format_version=np.array(FORMAT_VERSION), **chained))
 
 
 def load_damage_priors(path, params=None) -> DamagePriors:

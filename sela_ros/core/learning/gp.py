@@ -138,10 +138,6 @@ class CandidateSetGP:
         return self.candidates.shape[0]
 
     @property
-    def input_dim(self) -> int:
-        return self.candidates.shape[1]
-
-    @property
     def output_dim(self) -> int:
         return self.prior.shape[1]
 

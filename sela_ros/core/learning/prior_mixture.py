@@ -107,10 +107,15 @@ class Mixture:
         each weighed by its weight clipped to [0, 1]."""
         fallen = np.asarray(fallen, dtype=bool)
         c = np.clip(self.weights, 0.0, 1.0)
-        stand = np.ones(fallen.shape[1])
-        for ck, fk in zip(c, fallen):
-            if ck > 0:
-                stand[fk] *= 1.0 - ck
+        used = np.flatnonzero(c > 0)
+        if not used.size:
+            return np.zeros(fallen.shape[1])
+        # prod_k (1 - c_k f_k) as one product over the tables used: a table of weight 1
+        # stands for no gait it tips over.
+        sure = c[used] >= 1.0
+        stand = np.exp(np.log1p(-np.where(sure, 0.0, c[used])) @ fallen[used])
+        if sure.any():
+            stand[fallen[used[sure]].any(axis=0)] = 0.0
         return 1.0 - stand
 
 

@@ -175,6 +175,7 @@ class SELA:
         # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
         # the mixture of the tables.
         self._prior_scores = {'table': 0.0, 'mixture': 0.0}
+        self._mixture_fit = None
 
     def forget_learning(self) -> None:
         """Back to the intact map: every observation forgotten, also what restarts set aside
@@ -229,8 +230,8 @@ class SELA:
     def forget_falls(self) -> None:
         """Forget every observed fall: back to the prior fall rates."""
         c = self.config
-        self._fall = fall_risk.FallRisk(self._candidates, self._prior_fall_rate,
-                                        sigma=c.fall_kernel_sigma or c.gp_kernel_sigma,
+        sigma = c.gp_kernel_sigma if c.fall_kernel_sigma is None else c.fall_kernel_sigma
+        self._fall = fall_risk.FallRisk(self._candidates, self._prior_fall_rate, sigma=sigma,
                                         variance=c.gp_kernel_variance,
                                         noise=c.gp_noise, stability=self._stability)
 
@@ -256,9 +257,10 @@ class SELA:
         """The prior mean the next choice uses: the intact map, the damage prior that
         best explains the steps seen so far (:meth:`DamagePriors.select`) if it reproduced
         the robot's standing starts (the robot's own damage, foreseen) or no step started
-        standing, else, with ``priors.weights.sd`` > 0, the mixture of the tables that fits
-        the steps (:func:`~sela_ros.core.learning.prior_mixture.fit_mixture`); with 0, the selected
-        table or the intact map whatever it reproduced."""
+        standing, else the mixture of the tables that fits the steps
+        (:func:`~sela_ros.core.learning.prior_mixture.fit_mixture`); with
+        ``priors.weights.sd`` none, the selected table or the intact map whatever it
+        reproduced."""
         if self.priors is None or not self._gp.num_samples:
             return damage_priors.INTACT
         fall_idx, fallen = self._fall.observations
@@ -270,16 +272,23 @@ class SELA:
         # table that explains the steps (priors.max.misfit) is then used as it is.
         unjudged = selection.index is not None and not any(self._standing)
         scores = self._prior_scores
-        if self.config.priors_weights_sd <= 0 or selection.reproduced or unjudged \
+        if self.config.priors_weights_sd is None or selection.reproduced or unjudged \
                 or scores['mixture'] <= scores['table']:
             return selection
         mixture = self._mixture(idx, grs, fall_idx, fallen)
         return damage_priors.Selection(None, MIXTURE, mixture.misfit, mixture=mixture)
 
     def _mixture(self, idx, grs, fall_idx, fallen):
-        return prior_mixture.fit_mixture(self._prior, self.priors.generic_reward, idx, grs,
-                                         fall_idx, fallen, self._standing,
-                                         weight_sd=self.config.priors_weights_sd)
+        # The same steps are fitted twice, when a step is scored before it is learnt and
+        # when the next gait is chosen: the fit is kept for the steps it was made on.
+        key = (np.asarray(idx).tobytes(), np.asarray(grs).tobytes(),
+               np.asarray(fall_idx).tobytes(), np.asarray(fallen).tobytes(),
+               tuple(self._standing), self.config.priors_weights_sd, id(self.priors))
+        if self._mixture_fit is None or self._mixture_fit[0] != key:
+            self._mixture_fit = (key, prior_mixture.fit_mixture(
+                self._prior, self.priors.generic_reward, idx, grs, fall_idx, fallen,
+                self._standing, weight_sd=self.config.priors_weights_sd))
+        return self._mixture_fit[1]
 
     def _score_priors(self, index, observed, standing) -> None:
         """Score the one-table choice and the mixture on a step about to be learnt: the
@@ -458,7 +467,7 @@ class SELA:
         after it was put back on its feet), as the damage priors' tables ran every gait."""
         observed = np.asarray(observed_gr, dtype=float).reshape(-1)
         if self.priors is not None and len(self.priors) and self._gp.num_samples \
-                and self.config.priors_weights_sd > 0 and observed.shape == \
+                and self.config.priors_weights_sd is not None and observed.shape == \
                 (self.motion.gr_dim,) and np.all(np.isfinite(observed)) \
                 and isinstance(index, (int, np.integer)) and 0 <= index < self.num_candidates:
             self._score_priors(int(index), observed, bool(standing_start))

@@ -8,23 +8,23 @@ showed it; what was learned before is set aside (kept in the state), never delet
 import numpy as np
 
 from sela_ros.core.detection import EvidenceConfig
-from sela_ros.core.learning import SELA, SE2Motion, SELAConfig
+from sela_ros.core.learning import AUTO, SELA, SE2Motion, SELAConfig
 from sela_ros.core.mission.stepper_io import StepRecord
 
 
 def archive_config(archive, config=None) -> SELAConfig:
     """SELA parameters for ``archive``: ``config`` (dotted names), where ``gp.kernel.sigma``,
-    ``fall.kernel.sigma`` and ``planner.horizon`` left out (or 0) are the archive's own
+    ``fall.kernel.sigma`` and ``planner.horizon`` left out (or ``auto``) are the archive's own
     (:attr:`~sela_ros.core.storage.Archive.kernel_sigma`,
     :attr:`~sela_ros.core.storage.Archive.fall_kernel_sigma`,
     :attr:`~sela_ros.core.storage.Archive.planner_horizon`)."""
     config = dict(config or {})
-    if not config.get('gp.kernel.sigma'):
-        config['gp.kernel.sigma'] = archive.kernel_sigma
-    if not config.get('fall.kernel.sigma'):
-        config['fall.kernel.sigma'] = getattr(archive, 'fall_kernel_sigma', 0.0)
-    if not config.get('planner.horizon'):
-        config['planner.horizon'] = getattr(archive, 'planner_horizon', 1)
+    own = {'gp.kernel.sigma': archive.kernel_sigma,
+           'fall.kernel.sigma': getattr(archive, 'fall_kernel_sigma', AUTO),
+           'planner.horizon': getattr(archive, 'planner_horizon', 1)}
+    for name, value in own.items():
+        if config.get(name, AUTO) in (AUTO, None):
+            config[name] = value
     return SELAConfig.from_dict(config)
 
 

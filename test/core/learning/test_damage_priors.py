@@ -51,7 +51,7 @@ def test_the_table_that_explains_the_steps_is_chosen_and_a_poor_fit_is_not():
     # the nearest table still explains them badly and the intact map is kept.
     far = intact[idx] * [-2.0, 2.0, 1.0]
     assert priors.select(intact, idx, far).name == 'intact'
-    assert priors.select(intact, idx, seen, max_misfit=0.0).name == 'intact'
+    assert priors.select(intact, idx, seen, max_misfit=None).name == 'intact'
 
 
 def test_one_surprise_in_the_first_two_steps_does_not_set_the_right_table_aside():
@@ -84,7 +84,7 @@ def test_a_table_that_reproduced_the_standing_start_is_kept_through_chained_surp
     assert kept.name == 'remove:front_left' and 1.0 < kept.misfit < 2.0 and kept.reproduced
     assert priors.select(intact, idx, seen, standing=standing,
                          max_misfit_reproduced=1.0).name == 'intact'
-    assert priors.select(intact, idx, seen, max_misfit=0.0, standing=standing).name == 'intact'
+    assert priors.select(intact, idx, seen, max_misfit=None, standing=standing).name == 'intact'
     # Off by 5 cm from a standing start: not reproduced, no exception.
     missed = seen + [[0.05, 0.05, 0.0], [0, 0, 0], [0, 0, 0]]
     assert priors.select(intact, idx, missed, standing=standing).name == 'intact'
@@ -195,6 +195,22 @@ def test_sela_refuses_tables_for_another_archive():
     candidates, intact, priors, _ = world()
     with pytest.raises(ValueError, match='damage priors are for 300 behaviours'):
         SELA(candidates[:10], intact[:10], SE2Motion(), priors=priors)
+
+
+def test_a_save_that_fails_leaves_the_file_it_would_replace_whole(tmp_path, monkeypatch):
+    _, _, priors, params = world()
+    path = tmp_path / 'map_priors.npz'
+    priors.save(path)
+    before = path.read_bytes()
+
+    def interrupted(handle, **arrays):
+        handle.write(b'half a file')
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, 'savez_compressed', interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        priors.without('remove:front_left').save(path)
+    assert path.read_bytes() == before and sorted(tmp_path.iterdir()) == [path]
 
 
 def test_files_round_trip_and_bad_files_are_named(tmp_path):

@@ -161,7 +161,7 @@ def test_sela_uses_the_mixture_on_a_damage_no_table_holds():
     far = np.setdiff1d(np.arange(M), (3, 50, 97, 150))
     mixture_error = np.abs(mu[far] - truth[far]).mean()
     # The one-table choice is worse away from the gaits tried.
-    one = sela_over(priors, candidates, intact, priors_weights_sd=0.0)
+    one = sela_over(priors, candidates, intact, priors_weights_sd=None)
     for i in (3, 50, 97, 150):
         one.tell(i, truth[i], standing_start=i == 3)
     assert one.select_prior().mixture is None
@@ -239,7 +239,7 @@ def test_the_mixture_is_used_only_while_it_predicts_the_steps_better():
     assert again.state_dict()['prior_scores'] == scores
     assert again.select_prior().name == MIXTURE
     # Without a mixture (priors.weights.sd 0) nothing is scored.
-    off = sela_over(priors, candidates, intact, priors_weights_sd=0.0)
+    off = sela_over(priors, candidates, intact, priors_weights_sd=None)
     for i in steps:
         off.tell(i, truth[i], standing_start=i == 3)
     assert off.state_dict()['prior_scores'] == {'table': 0.0, 'mixture': 0.0}
@@ -261,3 +261,14 @@ def test_the_posterior_mean_of_one_gait_under_another_prior():
     for j in (0, 40, 300):
         np.testing.assert_allclose(gp.mean_at_with_prior(j, rows, other[j]), full[:, j],
                                    atol=1e-12)
+
+
+def test_the_mixed_falls_are_a_noisy_or_of_the_tables_weighed_by_their_weights():
+    rng = np.random.default_rng(4)
+    fallen = rng.random((5, 200)) < 0.3
+    for weights in ([0.0, 0.3, 1.0, 2.5, 0.7], [0.2, 0.0, 0.0, 0.5, 0.1], [0.0] * 5):
+        mixture = Mixture(np.array(weights), np.eye(5), 0.0, 0)
+        stand = np.ones(200)
+        for c, f in zip(np.clip(weights, 0, 1), fallen):
+            stand[f] *= 1.0 - c
+        np.testing.assert_allclose(mixture.fall_rates(fallen), 1.0 - stand, atol=1e-12)

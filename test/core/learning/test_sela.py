@@ -1,6 +1,7 @@
 """SELA ask/tell: motion models, config, reaching the toy goal, state round trip."""
 import json
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -51,6 +52,44 @@ def test_config_dotted_names():
         SELAConfig.from_dict({'gp.kernel.sgima': 0.2})
     with pytest.raises(ValueError, match='goal.eps'):
         SELAConfig(goal_eps=-1.0)
+
+
+def test_auto_and_none_are_words_not_numbers():
+    from sela_ros.core.mission import archive_config
+
+    c = SELAConfig.from_dict({'fall.kernel.sigma': 'auto', 'priors.max.misfit': 'none',
+                              'priors.weights.sd': 'none'})
+    assert c.fall_kernel_sigma is None and c.priors_max_misfit is None
+    assert c.priors_weights_sd is None
+    written = c.to_dict()
+    assert written['fall.kernel.sigma'] == 'auto' and written['priors.weights.sd'] == 'none'
+    assert written['priors.max.misfit'] == 'none'
+    assert SELAConfig.from_dict(written) == c
+    assert SELAConfig().to_dict()['fall.kernel.sigma'] == 'auto'
+    # A state file's 0 where none is meant reads as none.
+    assert SELAConfig.from_dict({'priors.weights.sd': 0.0}).priors_weights_sd is None
+    # 0 is no kernel length, no horizon, no cap: the words say what 0 cannot.
+    for field in ('gp_kernel_sigma', 'fall_kernel_sigma', 'priors_max_misfit',
+                  'priors_weights_sd'):
+        with pytest.raises(ValueError, match='must be'):
+            SELAConfig(**{field: 0.0})
+    with pytest.raises(ValueError, match='fall.kernel.sigma'):
+        SELAConfig.from_dict({'fall.kernel.sigma': 0.0})
+    with pytest.raises(ValueError, match="priors.weights.sd must be a number or none, got 'auto'"):
+        SELAConfig.from_dict({'priors.weights.sd': 'auto'})
+    for name in ('gp.kernel.sigma', 'planner.horizon'):
+        with pytest.raises(ValueError, match=f"{name} auto is the archive's value"):
+            SELAConfig.from_dict({name: 'auto'})
+    archive = SimpleNamespace(kernel_sigma=0.3, fall_kernel_sigma=0.12, planner_horizon=2)
+    resolved = archive_config(archive, {'gp.kernel.sigma': 'auto', 'planner.horizon': 'auto',
+                                        'fall.kernel.sigma': 'auto'})
+    assert (resolved.gp_kernel_sigma, resolved.fall_kernel_sigma,
+            resolved.planner_horizon) == (0.3, 0.12, 2)
+    assert archive_config(archive, {}) == resolved
+    told = archive_config(archive, {'gp.kernel.sigma': 0.2, 'planner.horizon': 1})
+    assert told.gp_kernel_sigma == 0.2 and told.planner_horizon == 1
+    with pytest.raises(ValueError, match='gp.kernel.sigma'):
+        archive_config(archive, {'gp.kernel.sigma': 0})
 
 
 def test_constructor_checks_shapes():

@@ -237,8 +237,8 @@ def test_kernel_length_is_the_maps_own_and_sela_takes_it_unless_told_otherwise()
         assert Archive(params=flat.params, descriptors=eight.descriptors,
                        generic_reward=flat.generic_reward, fitness=flat.fitness,
                        metadata=dict(meta, gp_kernel_sigma=bad)).kernel_sigma == 0.3
-    # The node's default (0), or no value, is the archive's; a value given is kept.
-    assert make_sela(eight, {'gp.kernel.sigma': 0.0}).config.gp_kernel_sigma == 0.3
+    # The node's default (auto), or no value, is the archive's; a value given is kept.
+    assert make_sela(eight, {'gp.kernel.sigma': 'auto'}).config.gp_kernel_sigma == 0.3
     assert make_sela(flat, {}).config.gp_kernel_sigma == 0.1
     assert make_sela(eight, {'gp.kernel.sigma': 0.2}).config.gp_kernel_sigma == 0.2
 
@@ -260,7 +260,7 @@ def test_an_8d_map_gives_the_fall_model_its_support_and_its_own_fall_kernel():
                     generic_reward=flat.generic_reward, fitness=flat.fitness,
                     metadata=dict(meta, descriptor_name='something_else', fall_kernel_sigma=0.2))
     assert other.stability is None and other.fall_kernel_sigma == 0.2
-    sela = make_sela(eight, {'fall.kernel.sigma': 0.0})
+    sela = make_sela(eight, {'fall.kernel.sigma': 'auto'})
     assert sela.config.fall_kernel_sigma == 0.12
     assert sela.fall_risk.support_model is not None
     assert make_sela(flat, {}).fall_risk.support_model is None
