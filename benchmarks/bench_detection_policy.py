@@ -16,14 +16,10 @@ import time
 
 import numpy as np
 
-from sela_ros.core.archive import load_archive
-from sela_ros.core.archive_paths import default_archive_path
-from sela_ros.core.damage_detection import DetectorConfig
-from sela_ros.core.learning import make_sela
-from sela_ros.core.maps import default_grid
-from sela_ros.core.mission import run_mission
-from sela_ros.core.planning import GridPlanner
-from sela_ros.core.stepper_io import StepperConfig
+from sela_ros.core.detection import DetectorConfig
+from sela_ros.core.mission import StepperConfig, make_sela, run_mission
+from sela_ros.core.planning import GridPlanner, default_grid
+from sela_ros.core.storage import default_archive_path, load_archive
 from sim_bridge.experiment_env import HexapodEnvironment
 
 POLICIES = ('reset', 'keep', 'evidence')

@@ -21,7 +21,7 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 import tempfile  # noqa: E402
 import time  # noqa: E402
 
-from sela_ros.core.archive_paths import default_archive_path  # noqa: E402
+from sela_ros.core.storage import default_archive_path  # noqa: E402
 from sela_ros.experiments.cli import main as cli_main  # noqa: E402
 
 

@@ -82,7 +82,7 @@ def main(argv=None) -> int:
     parser.add_argument('--seed', type=int, default=0)
     args = parser.parse_args(argv)
 
-    from sela_ros.core.archive_paths import default_archive_path
+    from sela_ros.core.storage import default_archive_path
 
     rng = np.random.default_rng(args.seed)
     with np.load(default_archive_path(), allow_pickle=False) as npz:

@@ -19,12 +19,7 @@ import time
 
 import numpy as np
 
-from sela_ros.core.planning import (
-    AStarPlanner,
-    GridPlanner,
-    OccupancyGrid,
-    next_waypoint,
-)
+from sela_ros.core.planning import AStarPlanner, GridPlanner, OccupancyGrid, next_waypoint
 
 RESOLUTION = 0.05
 INFLATION = 0.25

@@ -1,6 +1,6 @@
 """False restarts of learning over long missions, and the delay to detect a real new damage.
 
-Drives the product's step cycle (:class:`~sela_ros.core.stepper.MissionStepper`, as
+Drives the product's step cycle (:class:`~sela_ros.core.mission.MissionStepper`, as
 :func:`sela_ros.core.mission.run_mission` and the ``sela_adapter`` node do) with the node's
 defaults from config/sela.yaml (detector, priors, ``adaptation.on_detection``, reset on fall)
 through many successive goals, learning carried from one goal to the next::
@@ -23,15 +23,10 @@ from dataclasses import replace
 import numpy as np
 import yaml
 
-from sela_ros.core.archive import load_archive
-from sela_ros.core.archive_paths import default_archive_path
-from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
-from sela_ros.core.damage_priors import resolve_priors
-from sela_ros.core.learning import make_sela
-from sela_ros.core.mission import as_seen_in_odometry
-from sela_ros.core.planning import GridPlanner, PlanningError
-from sela_ros.core.stepper import MissionStepper
-from sela_ros.core.stepper_io import (
+from sela_ros.core.detection import DamageDetector, DetectorConfig
+from sela_ros.core.learning import resolve_priors
+from sela_ros.core.mission import MissionStepper, as_seen_in_odometry, make_sela
+from sela_ros.core.mission.stepper_io import (
     GoalReceived,
     OutcomeReceived,
     PlanReceived,
@@ -42,6 +37,8 @@ from sela_ros.core.stepper_io import (
     SendGait,
     VerdictReceived,
 )
+from sela_ros.core.planning import GridPlanner, PlanningError
+from sela_ros.core.storage import default_archive_path, load_archive
 from sela_ros.nodes import adapter_params
 from sela_ros.nodes.planner_node import grid_from_description
 from sim_bridge.environment import ObservedHexapod

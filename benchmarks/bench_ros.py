@@ -20,7 +20,7 @@ from pathlib import Path
 
 import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test' / 'dds'))
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random().randint(100, 101)))
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 

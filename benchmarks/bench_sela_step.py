@@ -17,7 +17,7 @@ import time
 
 import numpy as np  # noqa: E402
 
-from sela_ros.core.sela import SELA, PointMotion, observed_generic_reward  # noqa: E402
+from sela_ros.core.learning import SELA, PointMotion, observed_generic_reward  # noqa: E402
 
 
 def bench_step(num_candidates, observations=20, dim=8, repeats=15, seed=0):
@@ -51,7 +51,7 @@ def bench_step(num_candidates, observations=20, dim=8, repeats=15, seed=0):
 def library_like(priors, count, seed=0):
     """``count`` tables made from the shipped ones (each a random mix of two, perturbed), for
     timing SELA with a library of that size before it is built."""
-    from sela_ros.core.damage_priors import DamagePriors
+    from sela_ros.core.learning import DamagePriors
 
     rng = np.random.default_rng(seed)
     gr, fallen = priors.generic_reward, priors.fallen
@@ -71,10 +71,9 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None)
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
     step is timed with a damage prior in use; ``mixed``: of two of them added up, from a
     standing start first, so the mixture of the tables is in use) and two steps ahead."""
-    from sela_ros.core.archive import load_archive
-    from sela_ros.core.archive_paths import default_archive_path
-    from sela_ros.core.damage_priors import resolve_priors
-    from sela_ros.core.learning import make_sela
+    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.mission import make_sela
+    from sela_ros.core.storage import default_archive_path, load_archive
 
     archive = load_archive(default_archive_path())
     shipped = resolve_priors('auto', default_archive_path(), archive.params)

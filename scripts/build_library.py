@@ -11,7 +11,7 @@ toward its waypoint: docs/priors_combination.md); the other gaits inferred by a 
 same descriptors (prior mean: the intact map; what is learnt: each condition's deviation
 from it, and its falls). The single legs removed are not built: their whole tables ship
 beside the map (``make priors``) and the library takes them from there. The result is a
-damage-priors file (``DamagePriors``) that SELA mixes (``sela_ros.core.prior_mixture``) or
+damage-priors file (``DamagePriors``) that SELA mixes (``sela_ros.core.learning.prior_mixture``) or
 chooses from, as ``priors.tables: <path>``.
 
     .venv/bin/python scripts/build_library.py --plan              # conditions, cost, size
@@ -132,7 +132,7 @@ def _evaluate(job):
 def build(archive, out, gaits, chunk, workers, only=None, skip=()):
     """Evaluate every chunk not on disk yet (conditions in ``skip`` not at all: their whole
     table ships); returns how many were evaluated now."""
-    from sela_ros.core.persistence import atomic_write
+    from sela_ros.core.storage import atomic_write
 
     subset = archive_subset(archive, gaits)
     settings = archive.simulator_settings
@@ -174,7 +174,7 @@ def infer(descriptors, base, gaits, gr, fallen, sigma, noise_ratio=0.1, rows=200
     label (prior 0), exponential kernel of length ``sigma`` over the descriptors."""
     from scipy.linalg import cho_factor, cho_solve
 
-    from sela_ros.core.gp import exponential_kernel
+    from sela_ros.core.learning import exponential_kernel
 
     x = descriptors[gaits]
     targets = np.column_stack([gr - base[gaits], fallen.astype(float)])
@@ -225,7 +225,7 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
     condition whose whole table ships (``shipped``, the map's own damage priors) is taken
     from there, chained runs included. ``partial``: conditions with only part of their gaits
     evaluated are inferred from those, conditions with none are left out (both listed)."""
-    from sela_ros.core.damage_priors import DamagePriors, params_checksum
+    from sela_ros.core.learning import DamagePriors, params_checksum
 
     planned = len(archive_subset(archive, gaits))
     descriptors = archive.normalised_descriptors()
@@ -275,9 +275,8 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
 
 
 def main(argv=None):
-    from sela_ros.core.archive import load_archive
-    from sela_ros.core.archive_paths import resolve_archive_path
-    from sela_ros.core.damage_priors import resolve_priors
+    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.storage import load_archive, resolve_archive_path
 
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--archive', default='8d', help="a map: '8d' (default), '2d' or a path")

@@ -23,10 +23,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sela_ros.core.archive import load_archive  # noqa: E402
-from sela_ros.core.archive_paths import resolve_archive_path  # noqa: E402
-from sela_ros.core.damage_priors import DamagePriors, params_checksum, priors_path  # noqa: E402
-from sela_ros.core.fall_risk import FallRisk  # noqa: E402
+from sela_ros.core.learning import (  # noqa: E402
+    DamagePriors,
+    FallRisk,  # noqa: E402
+    params_checksum,
+    priors_path,
+)
+from sela_ros.core.storage import (
+    load_archive,  # noqa: E402
+    resolve_archive_path,  # noqa: E402
+)
 from sela_ros.experiments.campaign import damage_list  # noqa: E402
 from sim_bridge.experiment_env import chained_runs, oracle_table  # noqa: E402
 

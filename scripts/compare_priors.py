@@ -84,7 +84,7 @@ def oracle_medians():
 def leave_out(priors, damage):
     """``priors`` less ``damage``'s own condition (the same damage, canonically) and every
     table nearer to it than :data:`NEAR_DUPLICATE`; returns ``(priors, names left out)``."""
-    from sela_ros.core.damage_priors import RESIDUAL_SCALE
+    from sela_ros.core.learning.damage_priors import RESIDUAL_SCALE
     from sim_bridge.damage import parse_damage
 
     canonical = [parse_damage(n).canonical() for n in priors.names]
@@ -108,7 +108,7 @@ def run_one(archive, priors_all, case, goal, method, seed, args, library=None):
     replicate: the node's stepper, detector, planner and defaults), the observation noise
     seeded as the ``sim_bridge`` node's ``seed``; the method sets the damage priors and
     ``priors.weights.sd``."""
-    from sela_ros.core.archive_paths import default_archive_path
+    from sela_ros.core.storage import default_archive_path
     from sela_ros.experiments.hexapod import Job, run_method
 
     label, damage, leave_out_own = case
@@ -265,9 +265,8 @@ def main(argv=None):
                         help='run nothing: print the tables of the runs in --out')
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
-    from sela_ros.core.archive import load_archive
-    from sela_ros.core.archive_paths import default_archive_path
-    from sela_ros.core.damage_priors import resolve_priors
+    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.storage import default_archive_path, load_archive
 
     methods = [m for m in args.methods.split(',') if m]
     unknown = set(methods) - set(METHODS)

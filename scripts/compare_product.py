@@ -25,7 +25,7 @@ GOALS = ('1.6,-1.0', '-1.4,1.2')
 
 
 def _runner(damage, goal, seed):
-    from sela_ros.core.archive_paths import default_archive_path
+    from sela_ros.core.storage import default_archive_path
     from sela_ros.experiments.hexapod import Job, run_method
 
     job = Job('sela', np.random.SeedSequence(seed), str(default_archive_path()), damage,

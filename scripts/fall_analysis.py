@@ -6,7 +6,7 @@ dimension and the intact displacement rank the gaits that fall (AUC).
 
     .venv/bin/python scripts/fall_analysis.py MAP.npz --damage remove:front_left --gaits 1500
 
-Behind the fall model's prior (sela_ros/core/fall_risk.py; docs/archive.md, "What tips a
+Behind the fall model's prior (sela_ros/core/learning/fall_risk.py; docs/archive.md, "What tips a
 damaged hexapod over"). About 0.1 s of one core per gait.
 """
 import argparse
@@ -17,7 +17,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sela_ros.core.archive import load_archive  # noqa: E402
+from sela_ros.core.storage import load_archive  # noqa: E402
 from sim_bridge.evaluation import evaluate_gait  # noqa: E402
 
 

@@ -19,8 +19,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sela_ros.core.archive import load_archive  # noqa: E402
-from sela_ros.core.archive_paths import resolve_archive_path  # noqa: E402
+from sela_ros.core.storage import (
+    load_archive,  # noqa: E402
+    resolve_archive_path,  # noqa: E402
+)
 from sim_bridge.experiment_env import oracle_table  # noqa: E402
 
 

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from sela_ros.core import N_PARAMS
-from sela_ros.core.damage_priors import params_checksum
-from sela_ros.core.persistence import atomic_write
+from sela_ros.core.learning import params_checksum
+from sela_ros.core.storage import atomic_write
 from sim_bridge.damage import parse_damage
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.evaluation import evaluate_gait

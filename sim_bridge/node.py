@@ -156,7 +156,7 @@ class SimBridge(Node):
         """
         from rclpy.parameter import Parameter
 
-        from sela_ros.core.archive_paths import resolve_archive_path
+        from sela_ros.core.storage import resolve_archive_path
 
         overrides = getattr(self, '_parameter_overrides', None)
         if not isinstance(overrides, dict):

@@ -1,8 +1,10 @@
-"""Shared fixtures: every test run gets its own ROS_DOMAIN_ID and stays on loopback."""
+"""Shared fixtures: every test run gets its own ROS_DOMAIN_ID and stays on loopback; the tests
+over DDS are the ones in test/dds/."""
 import fcntl
 import os
 import random
 import tempfile
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -42,11 +44,31 @@ def pytest_configure(config):
     if 'SELA_TEST_DOMAIN_ID' not in os.environ:
         os.environ['SELA_TEST_DOMAIN_ID'] = str(_claim_domain_id())
     # This process (the tests' own client nodes) and every node it starts: this run's domain,
-    # DDS on loopback only (sela_ros.tools.ros_env; test_loopback.py checks the sockets).
+    # DDS on loopback only (sela_ros.tools.ros_env; dds/test_loopback_sockets.py checks the
+    # sockets).
     from sela_ros.tools.ros_env import ros_environment
 
     os.environ.update(ros_environment(domain_id=int(os.environ['SELA_TEST_DOMAIN_ID'])))
     os.environ.setdefault('ROS_LOG_DIR', os.path.join(tempfile.gettempdir(), 'sela_ros_test_logs'))
+
+
+#: Where the tests that start processes over DDS live (marked ``dds``); every other folder
+#: holds tests that never touch DDS (``make test TEST_ARGS='-m "not dds"'`` runs those).
+DDS_TESTS = Path(__file__).resolve().parent / 'dds'
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test in test/dds/ is marked ``dds``, and no test outside it is."""
+    wrong = []
+    for item in items:
+        inside = DDS_TESTS in Path(str(item.path)).resolve().parents
+        marked = item.get_closest_marker('dds') is not None
+        if inside != marked:
+            wrong.append(f'{item.nodeid}: ' + ('in test/dds/ but not marked dds' if inside
+                                                else 'marked dds outside test/dds/'))
+    if wrong:
+        raise pytest.UsageError('DDS tests are the ones in test/dds/, marked dds:\n'
+                                + '\n'.join(wrong))
 
 
 #: What pip adds beside rosdep (requirements-qd.txt): the offline map builder's extras. The

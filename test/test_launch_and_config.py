@@ -122,17 +122,16 @@ def test_config_is_keyed_by_node_name_with_ros_parameters():
 
 def test_config_defaults_are_the_code_defaults():
     """One source of truth: the YAML says what the code would do without it."""
-    from sela_ros.core.damage_detection import DetectorConfig
-    from sela_ros.core.plausibility import OutcomeLimits
-    from sela_ros.core.sela import SELAConfig
+    from sela_ros.core.detection import DetectorConfig
+    from sela_ros.core.learning import SELAConfig
+    from sela_ros.core.validation import OutcomeLimits
 
     config = _config()
     adapter = config['sela_adapter']['ros__parameters']
     for key, value in SELAConfig().to_dict().items():
         if key in ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon'):  # auto: the
-            from sela_ros.core.archive import load_archive  # archive's
-            from sela_ros.core.archive_paths import default_archive_path
-            from sela_ros.core.learning import make_sela
+            from sela_ros.core.mission import make_sela  # archive's
+            from sela_ros.core.storage import default_archive_path, load_archive
 
             assert adapter[key] == 'auto'
             shipped = load_archive(default_archive_path())

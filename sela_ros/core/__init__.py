@@ -1,5 +1,14 @@
-"""The learning core: GP, acquisition, SELA, planning, archive, detection, the mission
-stepper, geometry and persistence. numpy/scipy only, no ROS, nothing above it."""
+"""The learning core: numpy/scipy only, no ROS, nothing above it.
+
+Its subpackages, bottom up (imports only go down, ``test/test_layers.py``):
+:mod:`~sela_ros.core.validation` (checks at the edge: numbers, outcomes),
+:mod:`~sela_ros.core.storage` (the archive, the state file, atomic writes),
+:mod:`~sela_ros.core.planning` (occupancy grids, maps, the reward selection layer),
+:mod:`~sela_ros.core.detection` (has the robot changed?),
+:mod:`~sela_ros.core.learning` (GPs, UCB, SELA, damage priors, fall risk),
+:mod:`~sela_ros.core.mission` (the step cycle, in process or driven by the adapter node);
+:mod:`~sela_ros.core.geometry` (planar geometry) under them all.
+"""
 
 #: Parameters of one gait: the open-loop controller's (sim_bridge.controller), what an
 #: archive stores per behaviour and what a behaviour command carries.

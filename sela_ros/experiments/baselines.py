@@ -28,13 +28,16 @@ from typing import Protocol
 
 import numpy as np
 
-from sela_ros.core import acquisition
-from sela_ros.core.damage_detection import DetectorConfig
-from sela_ros.core.gp import CandidateSetGP
-from sela_ros.core.mission import run_mission
+from sela_ros.core.detection import DetectorConfig
+from sela_ros.core.learning import (
+    SELA,
+    CandidateSetGP,
+    SELAConfig,
+    acquisition,
+    observed_generic_reward,
+)
+from sela_ros.core.mission import StepperConfig, run_mission
 from sela_ros.core.planning import PlanningError, next_waypoint, straight_line_planner
-from sela_ros.core.sela import SELA, SELAConfig, observed_generic_reward
-from sela_ros.core.stepper_io import StepperConfig
 
 
 class Environment(Protocol):
@@ -84,7 +87,7 @@ class Problem:
         babbling_max_iterations: random babbling trials at most (15).
         uncertainty_iterations: trials of ``ite_uncertainty`` (15).
         stability: ``(M,)`` the fall model's stability feature (SELA's ``stability``).
-        priors: damage priors (:mod:`sela_ros.core.damage_priors`) for ``sela`` only; the
+        priors: damage priors (:mod:`sela_ros.core.learning.damage_priors`) for ``sela`` only; the
             baselines are the paper's, over the intact map and one step ahead.
         stepper, detector, detect: for ``sela``, which runs the ``sela_adapter`` node's
             decision loop: its stepper's and damage detector's settings (the node's

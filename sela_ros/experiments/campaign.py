@@ -27,8 +27,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from sela_ros.core.persistence import atomic_write_bytes
-from sela_ros.core.sela import SELAConfig
+from sela_ros.core.learning import SELAConfig
+from sela_ros.core.storage import atomic_write_bytes
 from sela_ros.experiments import arguments, hexapod, workers
 
 LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right', 'rear_right')
@@ -56,7 +56,7 @@ def damage_list(text):
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from sela_ros.core.archive_paths import default_archive_path
+    from sela_ros.core.storage import default_archive_path
 
     parser.add_argument('--archive', action='append', type=hexapod.archive_argument, default=None,
                         help='a map to compare (repeat for several; default: the shipped one)')
@@ -139,7 +139,7 @@ def _expected_parameters(archive_path, args) -> dict:
 
 @functools.lru_cache(maxsize=4)
 def _load_archive(path):
-    from sela_ros.core.archive import load_archive
+    from sela_ros.core.storage import load_archive
 
     return load_archive(path)
 

@@ -25,8 +25,8 @@ import os
 import sys
 from dataclasses import dataclass
 
-from sela_ros.core.damage_priors import DamagePriorError
-from sela_ros.core.persistence import atomic_write_bytes
+from sela_ros.core.learning import DamagePriorError
+from sela_ros.core.storage import atomic_write_bytes
 from sela_ros.experiments import arguments
 
 

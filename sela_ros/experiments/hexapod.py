@@ -14,7 +14,7 @@ pose (eps 0.1 m).
 Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measurements):
 
 * Reward selection layer: the planner node's (an empty 8 m square centred on the start,
-  :data:`~sela_ros.core.maps.DEFAULT_MAP`; a goal off it is refused) with a waypoint
+  :data:`~sela_ros.core.planning.DEFAULT_MAP`; a goal off it is refused) with a waypoint
   ``--lookahead`` metres along the path (default 0.6 m; the hexapod's gaits move 0-0.7 m
   per 3 s). With ``--map`` (a course name such
   as ``maze``, or a map YAML) the optimal grid path on that map, ``--inflation`` metres
@@ -42,9 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sela_ros.core.maps import DEFAULT_INFLATION
-from sela_ros.core.planning import PlanningError
-from sela_ros.core.sela import SE2Motion, SELAConfig
+from sela_ros.core.learning import SE2Motion, SELAConfig
+from sela_ros.core.planning import DEFAULT_INFLATION, PlanningError
 from sela_ros.experiments import arguments
 from sela_ros.experiments.baselines import METHODS, Problem
 from sela_ros.experiments.workers import load_priors, worker_archive, worker_planner, worker_priors
@@ -57,8 +56,7 @@ FALLEN_GR = 1e3  # the oracle's stand-in outcome for a gait that falls: never ch
 
 
 def archive_argument(text):
-    from sela_ros.core.archive import ArchiveError, load_archive
-    from sela_ros.core.archive_paths import resolve_archive_path
+    from sela_ros.core.storage import ArchiveError, load_archive, resolve_archive_path
     from sim_bridge.settings import simulator_settings
 
     text = resolve_archive_path(text)
@@ -79,7 +77,7 @@ def archive_argument(text):
 
 def _course_map(text):
     """``--map``: a course name or a map file; returns ``(path, Course or None)``."""
-    from sela_ros.core.maps import MapError, load_map_file
+    from sela_ros.core.planning import MapError, load_map_file
     from sela_ros.experiments.courses import find_course
 
     try:
@@ -92,7 +90,7 @@ def _course_map(text):
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment hexapod`` (the common ones are added by the CLI)."""
-    from sela_ros.core.archive_paths import default_archive_path
+    from sela_ros.core.storage import default_archive_path
 
     parser.add_argument('--archive', type=archive_argument, default=str(default_archive_path()),
                         help='behaviour-performance map (.npz, or 8d / 2d for the shipped '
@@ -181,7 +179,7 @@ def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=Non
                 fall_kernel_sigma=None, fall_cost=None, horizon=None,
                 weights_sd=None) -> SELAConfig:
     """The SELA parameters of a run: those given, the archive's own for the rest."""
-    from sela_ros.core.learning import archive_config
+    from sela_ros.core.mission import archive_config
 
     given = {'planner.lookahead': lookahead, 'fall.risk.threshold': fall_risk or None,
              'gp.kernel.sigma': kernel_sigma, 'fall.kernel.sigma': fall_kernel_sigma,
@@ -307,7 +305,7 @@ def run_method(job: Job):
 
 def run(args, progress=None) -> dict:
     """Run the experiment described by ``args``; returns the results.json document."""
-    from sela_ros.core.archive import load_archive
+    from sela_ros.core.storage import load_archive
     from sim_bridge.experiment_env import archive_checksum, oracle_table
 
     archive = load_archive(args.archive)
@@ -426,7 +424,7 @@ def write_figures(doc, out) -> list:
     params = doc['parameters']
     if not params.get('map'):
         return []
-    from sela_ros.core.maps import load_map_file
+    from sela_ros.core.planning import load_map_file
     from sela_ros.experiments.figures import plot_course_paths
 
     path = os.path.join(out, 'paths.png')

@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 
+from sela_ros.core.learning import PointMotion, SELAConfig
+from sela_ros.core.mission import StepperConfig
 from sela_ros.core.planning import GridPlanner, OccupancyGrid
-from sela_ros.core.sela import PointMotion, SELAConfig
-from sela_ros.core.stepper_io import StepperConfig
 from sela_ros.experiments.baselines import Problem
 
 PAPER_NOISE_STD = 0.1  # the paper's sigma^2 = 0.01

@@ -7,7 +7,7 @@ from __future__ import annotations
 def load_priors(value, archive_path, archive, damage=None, leave_out_own=False):
     """The damage priors of a run (None: the intact map only); ``leave_out_own`` drops
     ``damage`` from them. Raises DamagePriorError."""
-    from sela_ros.core.damage_priors import resolve_priors
+    from sela_ros.core.learning import resolve_priors
 
     priors = resolve_priors(value, archive_path, archive.params)
     if priors is not None and leave_out_own:
@@ -21,7 +21,7 @@ _WORKER = {}
 
 def worker_archive(archive_path):
     """The archive at ``archive_path``, loaded once per worker."""
-    from sela_ros.core.archive import load_archive
+    from sela_ros.core.storage import load_archive
 
     if _WORKER.get('path') != archive_path:
         _WORKER['path'] = archive_path
@@ -42,8 +42,7 @@ def worker_priors(value, archive_path, damage, leave_out_own):
 def worker_planner(map_path, inflation):
     """``(grid, planner)`` for a map (None: the planner node's default map), built once per
     worker (its fields are kept too)."""
-    from sela_ros.core.maps import default_grid, load_map_file
-    from sela_ros.core.planning import GridPlanner
+    from sela_ros.core.planning import GridPlanner, default_grid, load_map_file
 
     if _WORKER.get('map') != (map_path, inflation):
         grid = load_map_file(map_path) if map_path else default_grid()

@@ -4,12 +4,12 @@
 A goal becomes the same stepper event as a goal on ``goal_pose`` or ``goal_path``
 (:mod:`sela_ros.nodes.adapter_node`); the goal handle is bound to the mission it started, by the
 stepper's mission id, so that the mission's statuses become the goal's feedback and its
-:class:`~sela_ros.core.stepper_io.MissionEnded` the goal's result. One mission at a time, as
-nav2: a new goal (an action's, or one on the topics) ends the running mission and aborts its
-goal ("preempted"). A cancel ends the mission after the running gait (no gait after it); the
-goal is then CANCELED. A goal off the map or in an obstacle is accepted and aborted at once,
-with ``error_code`` and ``error_msg`` saying why; a mission that ends without reaching its goal
-is aborted with the stepper's reason.
+:class:`~sela_ros.core.mission.stepper_io.MissionEnded` the goal's result. One mission at a
+time, as nav2: a new goal (an action's, or one on the topics) ends the running mission and
+aborts its goal ("preempted"). A cancel ends the mission after the running gait (no gait after
+it); the goal is then CANCELED. A goal off the map or in an obstacle is accepted and aborted
+at once, with ``error_code`` and ``error_msg`` saying why; a mission that ends without reaching
+its goal is aborted with the stepper's reason.
 
 No callback waits: the execute callbacks are coroutines that await the mission's end, which
 the node's event loop resolves (:meth:`MissionActions.mission_ended`).
@@ -23,8 +23,8 @@ from nav_msgs.msg import Path
 from rclpy.action import CancelResponse, GoalResponse
 from rclpy.task import Future
 
-from sela_ros.core import stepper_io as io
-from sela_ros.core.mission_status import vector_from_text
+from sela_ros.core.mission import stepper_io as io
+from sela_ros.core.mission import vector_from_text
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 

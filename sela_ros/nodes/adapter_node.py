@@ -1,6 +1,6 @@
 """The ``sela_adapter`` node: the archive, the GPs and UCB; chooses gaits and learns.
 
-A thin layer around :class:`sela_ros.core.stepper.MissionStepper` (plan -> ask -> command ->
+A thin layer around :class:`sela_ros.core.mission.MissionStepper` (plan -> ask -> command ->
 outcome -> verdict -> learn): each message or service answer becomes a stepper event, each
 command it returns a message, a service call or a file write; no callback waits. Outcomes
 and verdicts (``damage_detector/verdict``) pair with the command by id. ``~/adapt`` starts
@@ -19,12 +19,10 @@ from rclpy.node import Node
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from sela_ros.core import persistence
-from sela_ros.core import stepper_io as io
-from sela_ros.core.archive import ArchiveError, load_archive
-from sela_ros.core.archive_paths import resolve_archive_path
+from sela_ros.core.mission import stepper_io as io
 from sela_ros.core.planning import OccupancyGrid
-from sela_ros.core.plausibility import OutcomeLimits
+from sela_ros.core.storage import ArchiveError, load_archive, persistence, resolve_archive_path
+from sela_ros.core.validation import OutcomeLimits
 from sela_ros.nodes import adapter_params as params
 from sela_ros.nodes import adapter_support, markers
 from sela_ros.nodes import conversions as conv
@@ -192,13 +190,13 @@ class SelaAdapter(Node):
         """Take back what the state file holds; an unusable file is set aside with the
         reason."""
         path = self.store.path
-        restored = []
+        restored = {}
 
         def restore(state):
-            # Into a fresh stepper, swapped in only once all of it came back.
+            # Into a fresh stepper, swapped in below only once all of it came back.
             stepper = adapter_support.new_stepper(self.values, self.archive, self.priors)
-            restored.extend(stepper.restore(state, self.now()))
-            self.stepper = stepper
+            restored['commands'] = stepper.restore(state, self.now())
+            restored['stepper'] = stepper
 
         limits = OutcomeLimits(self.stepper.config.max_displacement)
         state, problem = persistence.resume_state(path, len(self.archive), restore,
@@ -206,8 +204,9 @@ class SelaAdapter(Node):
         if problem:
             self.report(io.Level.ERROR, problem)
             return
-        self._dispatch(restored)
         if state is not None:
+            self.stepper = restored['stepper']
+            self._dispatch(restored['commands'])
             mode = 'adapting' if self.stepper.logic.adapting else 'trusting the map'
             self.get_logger().warn(f'resumed from {path}: '
                                    f'{len(self.stepper.sela.observations[0])} '

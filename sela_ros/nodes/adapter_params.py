@@ -1,8 +1,7 @@
 """The ``sela_adapter`` node's parameters: names, defaults, descriptions, ranges, and what
 they configure (SELA and the mission stepper). Declared through :func:`params.declare`."""
-from sela_ros.core.learning import ON_DETECTION
-from sela_ros.core.sela_config import AUTO, NONE, SELAConfig
-from sela_ros.core.stepper_io import StepperConfig
+from sela_ros.core.learning import AUTO, NONE, SELAConfig
+from sela_ros.core.mission import ON_DETECTION, StepperConfig
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.params import Spec
 

@@ -6,12 +6,10 @@ keeps its own state.
 """
 import os
 
-from sela_ros.core import stepper_io as io
-from sela_ros.core.archive import ArchiveError, load_archive
-from sela_ros.core.archive_paths import resolve_archive_path
-from sela_ros.core.damage_priors import DamagePriorError, resolve_priors
-from sela_ros.core.learning import make_sela
-from sela_ros.core.stepper import MissionStepper
+from sela_ros.core.learning import DamagePriorError, resolve_priors
+from sela_ros.core.mission import MissionStepper, make_sela
+from sela_ros.core.mission import stepper_io as io
+from sela_ros.core.storage import ArchiveError, load_archive, resolve_archive_path
 from sela_ros.nodes import adapter_params as params
 
 

@@ -29,7 +29,7 @@ from nav_msgs.msg import Odometry, Path
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from sela_ros.core import N_PARAMS, geometry
-from sela_ros.core.stepper_io import (
+from sela_ros.core.mission.stepper_io import (
     GoalReceived,
     GoalsReceived,
     OutcomeReceived,

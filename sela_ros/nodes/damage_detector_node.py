@@ -2,7 +2,7 @@
 
 Pairs ``sela/prediction`` and ``hexapod/behavior_outcome`` by command id, in whichever
 order they arrive (both are reliable and kept for late joiners), judges the error with
-:class:`sela_ros.core.damage_detection.DamageDetector` and publishes one verdict per outcome
+:class:`sela_ros.core.detection.DamageDetector` and publishes one verdict per outcome
 on ``~/verdict`` (``/damage_detector/verdict``): the adapter waits for it, and adapts when it
 says damage was detected. The same verdict goes to ``diagnostics`` (name ``damage_detector:
 prediction error``; level ERROR when damage is detected) for whoever monitors the robot.
@@ -15,8 +15,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 
-from sela_ros.core.damage_detection import DamageDetector, DetectorConfig
-from sela_ros.core.plausibility import ImplausibleOutcome, OutcomeLimits, check_outcome
+from sela_ros.core.detection import DamageDetector, DetectorConfig
+from sela_ros.core.validation import ImplausibleOutcome, OutcomeLimits, check_outcome
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard, guard_parameters

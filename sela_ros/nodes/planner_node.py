@@ -21,15 +21,16 @@ from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from sela_ros.core.maps import (
+from sela_ros.core.planning import (
     DEFAULT_INFLATION,
     DEFAULT_MAP,
+    GridPlanner,
     MapError,
+    PlanningError,
     grid_from_description,
     grid_from_ros,
     load_map_file,
 )
-from sela_ros.core.planning import GridPlanner, PlanningError
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes import interface as ifc

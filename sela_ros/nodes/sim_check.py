@@ -7,7 +7,7 @@ them (its parameter service) and says whether the stepper must hold its gaits, a
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import GetParameters
 
-from sela_ros.core.archive import SETTING_DEFAULTS, ArchiveError, check_settings
+from sela_ros.core.storage import SETTING_DEFAULTS, ArchiveError, check_settings
 
 SETTINGS = ('sim.dt', 'sim.gait_duration', 'sim.solver_iterations')
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from sela_ros.core.archive import Archive
+from sela_ros.core.storage import Archive
 from sela_ros.qd.map_elites import (
     EXTRA_FIELDS,
     THRESHOLD_MIN,
@@ -147,7 +147,7 @@ class CVTMapElites(MapElites):
         return int(archive.stats.num_elites)
 
     def to_archive(self, **metadata: Any) -> Archive:
-        """The elites as an :class:`~sela_ros.core.archive.Archive`, centroids included.
+        """The elites as an :class:`~sela_ros.core.storage.Archive`, centroids included.
 
         Args:
             **metadata: simulator settings, descriptor/fitness names, ...; the CVT, bounds

@@ -26,8 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from sela_ros.core.archive import Archive, atomic_savez, make_metadata
-from sela_ros.core.persistence import atomic_write
+from sela_ros.core.storage import Archive, atomic_savez, atomic_write, make_metadata
 from sela_ros.qd.evaluators import EvaluationResult
 from sela_ros.qd.executors import SerialEvaluator
 
@@ -395,7 +394,7 @@ class GridMapElites(MapElites):
         return run
 
     def to_archive(self, **metadata: Any) -> Archive:
-        """The elites as an :class:`~sela_ros.core.archive.Archive` (for SELA, or to save).
+        """The elites as an :class:`~sela_ros.core.storage.Archive` (for SELA, or to save).
 
         Args:
             **metadata: simulator settings, descriptor/fitness names, ...; the grid shape,

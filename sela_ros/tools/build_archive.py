@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from sela_ros.core import N_PARAMS
-from sela_ros.core.archive import Archive
+from sela_ros.core.storage import Archive
 from sela_ros.qd.evaluators import HexapodEvaluator, SyntheticEvaluator
 from sela_ros.qd.executors import DaskEvaluator, ProcessPoolEvaluator, SerialEvaluator
 from sela_ros.qd.map_elites import GridMapElites, default_run

@@ -225,7 +225,7 @@ def run_client(args, damage, out, procs):
         json.dump(summary, handle, indent=1)
     grid = None
     if args.course:
-        from sela_ros.core.maps import load_map_file
+        from sela_ros.core.planning import load_map_file
 
         grid = load_map_file(args.course[0])
     plot_trajectory(out / 'trajectory.png', trajectory, steps, args.goals, damage, grid)

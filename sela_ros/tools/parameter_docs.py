@@ -2,7 +2,7 @@
 
     .venv/bin/python -m sela_ros.tools.parameter_docs > docs/parameters.md
 
-``test/test_parameter_docs.py`` checks that the file is what this writes, and that
+``test/nodes/test_parameter_docs.py`` checks that the file is what this writes, and that
 ``config/sela.yaml`` gives every parameter the default the code has.
 """
 import sys
@@ -10,7 +10,7 @@ import sys
 
 def node_parameters():
     """``{node name: (Spec, ...)}`` for the four nodes, as each declares them."""
-    from sela_ros.core.damage_detection import DetectorConfig
+    from sela_ros.core.detection import DetectorConfig
     from sela_ros.nodes import adapter_params, damage_detector_node, planner_node
     from sela_ros.nodes import interface as ifc
     from sim_bridge import node as sim_node

@@ -1,0 +1,544 @@
+"""SELA-ADAPT (Semi-Episodic Learning Algorithm) as an ask/tell object.
+
+One object serves the ROS ``sela_adapter`` node, the in-process experiments and the tests:
+``ask(pose)`` runs the reward selection layer (plan, pick a waypoint) and UCB over the whole
+archive; ``tell(index, observed_gr)`` adds the observed generic reward to the GPs. Learning
+and acting are the same steps: no reset, no separate training phase.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sela_ros.core.detection import change_evidence
+from sela_ros.core.learning import acquisition, damage_priors, fall_risk, gp, prior_mixture
+from sela_ros.core.learning.sela_config import SELAConfig
+from sela_ros.core.planning import next_waypoint, straight_line_planner
+
+
+def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
+    """``afun`` of the paper: the generic reward observed between two poses."""
+    return motion.generic_reward(pose_before, pose_after)
+
+
+#: With two steps: how many of the best first gaits (by the one-step score) are looked at.
+TWO_STEP_CANDIDATES = 40
+
+
+@dataclass
+class Decision:
+    """What :meth:`SELA.ask` chose, and why."""
+
+    index: int
+    waypoint: np.ndarray
+    predicted_gr: np.ndarray
+    predicted_pose: np.ndarray
+    reward: float  # specialised reward: -||waypoint - predicted xy||
+    sigma: float   # posterior standard deviation of the chosen behaviour
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    fall_risk: float = 0.0  # predicted risk that the chosen behaviour tips the robot over
+    # The best behaviours by UCB, the chosen one first: rows (x, y, sigma, ucb) with (x, y)
+    # where each is predicted to land. For observers (RViz markers), not for the choice.
+    candidates: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    prior: str = 'intact'  # the prior mean in use: the intact map or a damage prior's name
+
+
+#: :attr:`Decision.prior` of a first step hedged over the intact map and the damage priors.
+HEDGED = 'intact and damage priors'
+#: :attr:`Decision.prior` of the damage priors mixed by the weights that fit the steps seen.
+MIXTURE = 'mixture of damage priors'
+
+
+def prior_reason(name) -> str:
+    """Why the prior mean ``name`` (:attr:`Decision.prior`) is the one in use, for logs."""
+    if name == HEDGED:
+        return 'no step has shown the damage yet: the first step is hedged over them'
+    if name == MIXTURE:
+        return ('no table reproduced the steps from a standing start: the tables weighed '
+                'by how well they explain the steps seen')
+    return 'the one that best explains the steps seen'
+
+
+#: How many candidates a :class:`Decision` reports.
+CANDIDATES_SHOWN = 5
+
+
+def top_candidates(index, x, y, sigma, scores, count=CANDIDATES_SHOWN):
+    """Rows ``(x, y, sigma, score)`` of ``index`` then the next best by ``scores``."""
+    scores = np.asarray(scores, dtype=float)
+    finite = np.flatnonzero(np.isfinite(scores))
+    if finite.size > count:
+        finite = finite[np.argpartition(-scores[finite], count)[:count]]
+    order = [index] + [int(i) for i in finite[np.argsort(-scores[finite], kind='stable')]
+                       if i != index]
+    order = order[:count]
+    return np.column_stack([x[order], y[order], sigma[order], scores[order]])
+
+
+#: Episodes of learning set aside (:meth:`SELA.set_aside`) kept in the state, the latest.
+SET_ASIDE_KEPT = 20
+
+
+class SELA:
+    """SELA-ADAPT over a fixed archive of behaviours.
+
+    Args:
+        candidates_normalised: ``(M, d)`` behaviour descriptors in ``[0, 1]^d``.
+        prior_gr: ``(M, k)`` generic reward of each behaviour on the intact robot (the
+            prior mean of the GPs), ``k == motion.gr_dim``.
+        motion: :class:`PointMotion` or :class:`SE2Motion`.
+        planner: callable ``(start_xy, goal_xy) -> path (n, 2)`` (e.g. a
+            :class:`~sela_ros.core.planning.GridPlanner`); None: the straight line.
+        goal: goal ``(x, y)``; may be set later with :meth:`set_goal`.
+        config: :class:`SELAConfig` or a dict of dotted names.
+        prior_fall_rate: ``(M,)`` fall rate of each behaviour on the robot the archive was
+            built on (prior of :class:`~sela_ros.core.learning.FallRisk`); None: zeros.
+        stability: ``(M,)`` a feature that makes a behaviour less likely to fall (the 8-D
+            hexapod map's support, :attr:`~sela_ros.core.storage.Archive.stability`): the
+            risk of untried behaviours is learnt as a logistic model of it; None: one rate.
+        priors: :class:`~sela_ros.core.learning.DamagePriors`, the same behaviours on
+            foreseen damages: before each choice the prior that best explains the steps seen
+            (one table, or their mixture: :meth:`select_prior`) is the GPs' prior mean;
+            None: always the intact map.
+    """
+
+    def __init__(self, candidates_normalised, prior_gr, motion, planner: Callable | None
+                 = None, goal=None, config=None, prior_fall_rate=None, stability=None,
+                 priors=None):
+        candidates = np.asarray(candidates_normalised, dtype=float)
+        prior_gr = np.asarray(prior_gr, dtype=float)
+        if candidates.ndim != 2:
+            raise ValueError(f'candidates must have shape (M, d), got {candidates.shape}')
+        if prior_gr.shape != (candidates.shape[0], motion.gr_dim):
+            raise ValueError(f'prior_gr must have shape ({candidates.shape[0]}, '
+                             f'{motion.gr_dim}) for {type(motion).__name__}, got '
+                             f'{prior_gr.shape}')
+        if candidates.size and (candidates.min() < -1e-9 or candidates.max() > 1 + 1e-9):
+            raise ValueError('candidates must be normalised to [0, 1]^d')
+        if isinstance(config, dict):
+            config = SELAConfig.from_dict(config)
+        self.config = config or SELAConfig()
+        self.motion = motion
+        self.planner = planner or straight_line_planner
+        self._candidates = candidates
+        self._prior = prior_gr
+        self._prior_fall_rate = prior_fall_rate
+        self._stability = stability
+        if priors is not None and (priors.num_candidates != candidates.shape[0]
+                                   or priors.generic_reward.shape[2] < motion.gr_dim):
+            raise ValueError(f'damage priors are for {priors.num_candidates} behaviours with '
+                             f'{priors.generic_reward.shape[2]} outputs, this SELA has '
+                             f'{candidates.shape[0]} with {motion.gr_dim}')
+        self.priors = priors
+        self.set_aside_learning = []  # earlier learning set aside: see set_aside()
+        self.goal = None
+        if goal is not None:
+            self.set_goal(goal)
+        self.reset_learning()
+        self.forget_falls()
+
+    @property
+    def priors(self):
+        """The damage priors (:class:`~sela_ros.core.learning.DamagePriors`) or None."""
+        return self._priors
+
+    @priors.setter
+    def priors(self, priors):
+        self._priors = priors
+        self._support = {}  # the fall model's prior per table (FallRisk.table_support)
+
+    @property
+    def num_candidates(self) -> int:
+        return self._candidates.shape[0]
+
+    @property
+    def gp(self) -> gp.CandidateSetGP:
+        return self._gp
+
+    @property
+    def fall_risk(self) -> fall_risk.FallRisk:
+        return self._fall
+
+    def reset_learning(self) -> None:
+        """Forget every observed generic reward: back to the prior (the intact map).
+
+        What was learnt about falls stays (see :meth:`forget_falls`): a gait that tipped this
+        robot over is no safer because adaptation restarts.
+        """
+        c = self.config
+        self._gp = gp.CandidateSetGP(self._candidates, self._prior, sigma=c.gp_kernel_sigma,
+                                     variance=c.gp_kernel_variance, noise=c.gp_noise)
+        self._standing = []  # per observation: did the step start from a standing start?
+        # How well each way of using the damage priors predicted every step before it was
+        # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
+        # the mixture of the tables.
+        self._prior_scores = {'table': 0.0, 'mixture': 0.0}
+        self._mixture_fit = None
+
+    def forget_learning(self) -> None:
+        """Back to the intact map: every observation forgotten, also what restarts set aside
+        (what was learnt about falls stays, as in :meth:`reset_learning`)."""
+        self.reset_learning()
+        self.set_aside_learning = []
+
+    def set_aside(self, reason, keep_from=None) -> int:
+        """Start learning afresh without losing what was learned: the observations before
+        ``keep_from`` (all of them with None) are set aside with ``reason`` (kept in
+        :meth:`state_dict` under ``set_aside``, at most :data:`SET_ASIDE_KEPT` episodes,
+        and brought back by :meth:`recover`); those from ``keep_from`` on are learnt again.
+        Returns how many observations were set aside."""
+        idx, grs = self.observations
+        standing = list(self._standing)
+        cut = len(idx) if keep_from is None else max(0, min(int(keep_from), len(idx)))
+        if cut:
+            self.set_aside_learning.append({
+                'reason': str(reason), 'indices': idx[:cut].tolist(),
+                'generic_rewards': grs[:cut].tolist(), 'standing_starts': standing[:cut]})
+            del self.set_aside_learning[:-SET_ASIDE_KEPT]
+        self.reset_learning()
+        for i, y, st in zip(idx[cut:], grs[cut:], standing[cut:]):
+            self.tell(int(i), y, st)
+        return cut
+
+    def change_evidence(self, config=None) -> change_evidence.Evidence:
+        """Whether the latest observations say the robot changed
+        (:func:`~sela_ros.core.detection.change_evidence.change_evidence`, with this SELA's
+        kernel)."""
+        idx, grs = self.observations
+        c = self.config
+        return change_evidence.change_evidence(self._candidates, self._prior, idx, grs,
+                                               c.gp_kernel_sigma, c.gp_kernel_variance,
+                                               c.gp_noise, config)
+
+    def recover(self) -> int:
+        """Bring back the latest learning set aside (:meth:`set_aside`), before what was
+        learned since; returns how many observations came back (0: none was set aside)."""
+        if not self.set_aside_learning:
+            return 0
+        episode = self.set_aside_learning.pop()
+        idx, grs = self.observations
+        standing = list(self._standing)
+        self.reset_learning()
+        back = list(zip(episode['indices'], episode['generic_rewards'],
+                        episode['standing_starts']))
+        for i, y, st in back + list(zip(idx, grs, standing)):
+            self.tell(int(i), y, bool(st))
+        return len(back)
+
+    def forget_falls(self) -> None:
+        """Forget every observed fall: back to the prior fall rates."""
+        c = self.config
+        sigma = c.gp_kernel_sigma if c.fall_kernel_sigma is None else c.fall_kernel_sigma
+        self._fall = fall_risk.FallRisk(self._candidates, self._prior_fall_rate, sigma=sigma,
+                                        variance=c.gp_kernel_variance,
+                                        noise=c.gp_noise, stability=self._stability)
+
+    def set_goal(self, goal) -> None:
+        goal = np.asarray(goal, dtype=float).reshape(-1)
+        if goal.shape[0] < 2 or not np.all(np.isfinite(goal[:2])):
+            raise ValueError(f'goal must be a finite (x, y), got {goal!r}')
+        self.goal = goal[:2].copy()
+
+    def _check_pose(self, pose):
+        pose = np.asarray(pose, dtype=float).reshape(-1)
+        if pose.shape != (self.motion.pose_dim,) or not np.all(np.isfinite(pose)):
+            raise ValueError(f'pose must be {self.motion.pose_dim} finite numbers, got {pose}')
+        return pose
+
+    def goal_reached(self, pose) -> bool:
+        if self.goal is None:
+            return False
+        pose = self._check_pose(pose)
+        return bool(np.linalg.norm(pose[:2] - self.goal) < self.config.goal_eps)
+
+    def select_prior(self) -> damage_priors.Selection:
+        """The prior mean the next choice uses: the intact map, the damage prior that
+        best explains the steps seen so far (:meth:`DamagePriors.select`) if it reproduced
+        the robot's standing starts (the robot's own damage, foreseen) or no step started
+        standing, else the mixture of the tables that fits the steps
+        (:func:`~sela_ros.core.learning.prior_mixture.fit_mixture`); with
+        ``priors.weights.sd`` none, the selected table or the intact map whatever it
+        reproduced."""
+        if self.priors is None or not self._gp.num_samples:
+            return damage_priors.INTACT
+        fall_idx, fallen = self._fall.observations
+        idx, grs = self.observations
+        selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                       self.config.priors_max_misfit, self._standing,
+                                       self.config.priors_max_misfit_reproduced)
+        # With no step from a standing start there is nothing a table could reproduce: a
+        # table that explains the steps (priors.max.misfit) is then used as it is.
+        unjudged = selection.index is not None and not any(self._standing)
+        scores = self._prior_scores
+        if self.config.priors_weights_sd is None or selection.reproduced or unjudged \
+                or scores['mixture'] <= scores['table']:
+            return selection
+        mixture = self._mixture(idx, grs, fall_idx, fallen)
+        return damage_priors.Selection(None, MIXTURE, mixture.misfit, mixture=mixture)
+
+    def _mixture(self, idx, grs, fall_idx, fallen):
+        # The same steps are fitted twice, when a step is scored before it is learnt and
+        # when the next gait is chosen: the fit is kept for the steps it was made on.
+        key = (np.asarray(idx).tobytes(), np.asarray(grs).tobytes(),
+               np.asarray(fall_idx).tobytes(), np.asarray(fallen).tobytes(),
+               tuple(self._standing), self.config.priors_weights_sd, id(self.priors))
+        if self._mixture_fit is None or self._mixture_fit[0] != key:
+            self._mixture_fit = (key, prior_mixture.fit_mixture(
+                self._prior, self.priors.generic_reward, idx, grs, fall_idx, fallen,
+                self._standing, weight_sd=self.config.priors_weights_sd))
+        return self._mixture_fit[1]
+
+    def _score_priors(self, index, observed, standing) -> None:
+        """Score the one-table choice and the mixture on a step about to be learnt: the
+        likelihood of what it did under each one's posterior mean, from the steps before it
+        (a prequential comparison: each is judged on predicting gaits it has not seen; the
+        mixture's K weights fit the steps seen better than one table can, so their fit
+        alone would always prefer it). The mixture is used only while it predicts better:
+        on a leg removed whose own table is left out, the other legs' tables predict the
+        gaits no better than the intact map (docs/priors_combination.md)."""
+        fall_idx, fallen = self._fall.observations
+        if fall_idx.size and fall_idx[-1] == index and fallen[-1]:
+            return  # the tumble's displacement tests neither
+        idx, grs = self.observations
+        k = self.motion.gr_dim
+        selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                       self.config.priors_max_misfit, self._standing,
+                                       self.config.priors_max_misfit_reproduced)
+        rows = np.append(idx, index)
+        one = (self._prior if selection.index is None
+               else self.priors.generic_reward[selection.index])[rows, :k]
+        weights = self._mixture(idx, grs, fall_idx, fallen).weights
+        base = self._prior[rows]
+        mixed = base + np.tensordot(weights, self.priors.generic_reward[:, rows, :k] - base,
+                                    axes=1)
+        for key, prior in (('table', one), ('mixture', mixed)):
+            predicted = self._gp.mean_at_with_prior(index, prior[:-1], prior[-1])
+            self._prior_scores[key] += prior_mixture.step_log_likelihood(
+                observed - predicted, standing)
+
+    def _posterior(self, selection):
+        """``(mu (k, M), var (M,), fall prior)`` under ``selection``: the fall prior is the
+        arguments of :meth:`FallRisk.risk` that the selected damage prior gives (its falls,
+        its support prior, and its chained runs if it reproduced the robot's standing
+        starts: those of another damage mislead), ``()`` for the intact map."""
+        mu_t, var = self._gp.query_columns()
+        if selection.mixture is not None:
+            # The mixture's falls set the fall model's prior as a table's do; no chained runs:
+            # those of the damages mixed mislead on another robot (docs/notebook.md).
+            mixture = selection.mixture
+            rates = mixture.fall_rates(self.priors.fallen)
+            mean = mixture.mean(self._prior, self.priors.generic_reward)
+            return (self._gp.mean_columns_with_prior(mean), var,
+                    (rates, self._fall.table_support(rates), None))
+        if selection.index is None:
+            return mu_t, var, ()
+        table = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
+        fallen = self.priors.fallen[selection.index]
+        if selection.index not in self._support:
+            self._support[selection.index] = self._fall.table_support(fallen)
+        return (self._gp.mean_columns_with_prior(table), var,
+                (fallen.astype(float), self._support[selection.index],
+                 self.priors.chained(selection.index) if selection.reproduced else None))
+
+    def predict(self):
+        """Posterior over the archive: ``(mu (M, k), sigma (M,))`` (under the prior in use)."""
+        mu_t, var, _ = self._posterior(self.select_prior())
+        return mu_t.T, np.sqrt(var)
+
+    def ask(self, pose, waypoint=None, next_waypoint_xy=None, map_trusted=False) -> Decision:
+        """Choose the next behaviour from ``pose`` (raises PlanningError if no path).
+
+        ``waypoint``: the reward selection layer's answer when it runs elsewhere (the
+        planner node); None: plan to the goal here and take ``planner.lookahead`` along it.
+        ``next_waypoint_xy``: with ``planner.horizon`` 2 and a given ``waypoint``, the
+        waypoint of the step after (None: the last step before the goal, one step only).
+        ``map_trusted``: no damage is known yet (the adapter before its detector's verdict):
+        choose on the map alone. Otherwise the first step of an adaptation with damage priors,
+        before any step has shown which damage the robot has, is hedged over the intact map
+        and every table (:meth:`_hedged_choice`).
+        """
+        pose = self._check_pose(pose)
+        second = None
+        if waypoint is not None:
+            waypoint = np.asarray(waypoint, dtype=float).reshape(-1)[:2]
+            path = np.array([pose[:2], waypoint])
+            if next_waypoint_xy is not None:
+                second = np.asarray(next_waypoint_xy, dtype=float).reshape(-1)[:2]
+        else:
+            if self.goal is None:
+                raise RuntimeError('no goal: call set_goal() before ask()')
+            path = np.asarray(self.planner(pose[:2], self.goal), dtype=float)
+            waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
+            if self.config.planner_horizon > 1:
+                second = next_waypoint(path, pose[:2], 2 * self.config.planner_lookahead)
+        if self.priors is not None and len(self.priors) and not self._gp.num_samples \
+                and not map_trusted:
+            return self._hedged_choice(pose, waypoint, path)
+        selection = self.select_prior()
+        mu_t, var, fall_prior = self._posterior(selection)
+        x, y = self.motion.predict_xy_columns(pose, mu_t)
+        reward = -np.hypot(x - waypoint[0], y - waypoint[1])
+        sigma = np.sqrt(var)
+        scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
+        risk = self._fall.risk(*fall_prior)
+        fall_aware = bool(self._fall.falls or self._prior_fall_rate is not None
+                          or self._stability is not None or fall_prior)
+        if fall_aware:
+            if self.config.fall_risk_cost:
+                scores = scores - self.config.fall_risk_cost * risk
+            scores = fall_risk.safe_choice(scores, risk, self.config.fall_risk_threshold)
+        index = int(np.argmax(scores))
+        if self.config.planner_horizon > 1 and second is not None \
+                and np.linalg.norm(second - waypoint) > 1e-6:
+            index = self._two_step_choice(pose, mu_t, scores, risk if fall_aware else None,
+                                          second, index)
+        gr = mu_t[:, index].copy()
+        return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
+                        predicted_pose=self.motion.predict(pose, gr),
+                        reward=float(reward[index]), sigma=float(sigma[index]), path=path,
+                        fall_risk=float(risk[index]),
+                        candidates=top_candidates(index, x, y, sigma, scores),
+                        prior=selection.name)
+
+    def _hedged_choice(self, pose, waypoint, path) -> Decision:
+        """The first step on a damage not known yet: the gait whose landing is nearest the
+        waypoint on average over the intact map and every damage prior, its risk the fall
+        model's (the intact map's prior) or the share of those that see it fall, whichever is
+        higher, weighed and capped as in every step; one step ahead.
+
+        Nothing tells the damages apart before the robot has moved, so the step the intact
+        map alone picks is often one the damaged robots cannot do (measured: docs/notebook.md,
+        "The first step and the fall model on a known damage")."""
+        c = self.config
+        k = self.motion.gr_dim
+        tables = [self._prior] + [g[:, :k] for g in self.priors.generic_reward]
+        distance, x, y = (np.zeros(self.num_candidates) for _ in range(3))
+        for table in tables:
+            tx, ty = self.motion.predict_xy_columns(pose, table.T)
+            distance += np.hypot(tx - waypoint[0], ty - waypoint[1])
+            x += tx
+            y += ty
+        distance, x, y = distance / len(tables), x / len(tables), y / len(tables)
+        falls = self.priors.fallen.sum(axis=0) / len(tables)
+        risk = np.maximum(self._fall.risk(), falls)
+        scores = fall_risk.safe_choice(-distance - c.fall_risk_cost * risk, risk,
+                                       c.fall_risk_threshold)
+        index = int(np.argmax(scores))
+        gr = np.mean([table[index] for table in tables], axis=0)
+        _, var = self._gp.query_columns()
+        sigma = np.sqrt(var)
+        return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
+                        predicted_pose=self.motion.predict(pose, gr),
+                        reward=float(-distance[index]), sigma=float(sigma[index]), path=path,
+                        fall_risk=float(risk[index]),
+                        candidates=top_candidates(index, x, y, sigma, scores),
+                        prior=HEDGED)
+
+    def _two_step_choice(self, pose, mu_t, scores, risk, second, index):
+        """Among the :data:`TWO_STEP_CANDIDATES` best gaits by ``scores``, the one from whose
+        predicted end pose the best next gait (risk weighed as in the first step) lands
+        nearest ``second``; ``index`` if no gait is allowed."""
+        finite = np.flatnonzero(np.isfinite(scores))
+        if not finite.size:
+            return index
+        top = finite[np.argsort(-scores[finite], kind='stable')[:TWO_STEP_CANDIDATES]]
+        c = self.config
+        if risk is None:
+            penalty = first = 0.0
+        else:
+            penalty = np.where(risk <= c.fall_risk_threshold, c.fall_risk_cost * risk, np.inf)
+            first = c.fall_risk_cost * risk
+        # Every candidate's end pose at once: (K, M) distances of the next gaits' landings.
+        ends = self.motion.predict(pose, mu_t[:, top].T).reshape(len(top), -1)
+        cost = self.motion.landing_sq_distances(ends, mu_t, second)  # (K, M), in place:
+        np.sqrt(np.maximum(cost, 0.0, out=cost), out=cost)           # the distances, then
+        if risk is not None:                                          # + the risk penalty
+            cost += penalty
+        value = -cost.min(axis=1)
+        if risk is not None:
+            value = value - first[top]
+        return int(top[int(np.argmax(value))]) if np.isfinite(value).any() else index
+
+    def tell(self, index: int, observed_gr, standing_start: bool = False) -> None:
+        """Learn that behaviour ``index`` produced the generic reward ``observed_gr``;
+        ``standing_start``: the step started with the robot standing (the first of a run, or
+        after it was put back on its feet), as the damage priors' tables ran every gait."""
+        observed = np.asarray(observed_gr, dtype=float).reshape(-1)
+        if self.priors is not None and len(self.priors) and self._gp.num_samples \
+                and self.config.priors_weights_sd is not None and observed.shape == \
+                (self.motion.gr_dim,) and np.all(np.isfinite(observed)) \
+                and isinstance(index, (int, np.integer)) and 0 <= index < self.num_candidates:
+            self._score_priors(int(index), observed, bool(standing_start))
+        self._gp.add_sample(index, observed_gr)
+        self._standing.append(bool(standing_start))
+
+    def tell_fall(self, index: int, fallen: bool) -> None:
+        """Learn whether behaviour ``index`` tipped the robot over. Every step tells it,
+        also while the map is still trusted and generic rewards are not learnt."""
+        self._fall.tell(index, fallen)
+
+    @property
+    def observations(self):
+        """``(indices (N,), generic rewards (N, k))`` told so far."""
+        return np.array(self._gp.indices, dtype=int), self._gp.observed
+
+    def state_dict(self) -> dict:
+        """What was learned, as JSON-able plain lists."""
+        idx, grs = self.observations
+        fall_idx, fallen = self._fall.observations
+        return {'num_candidates': self.num_candidates, 'gr_dim': self.motion.gr_dim,
+                'config': self.config.to_dict(),
+                'goal': None if self.goal is None else self.goal.tolist(),
+                'indices': idx.tolist(), 'generic_rewards': grs.tolist(),
+                'standing_starts': list(self._standing),
+                'prior_scores': dict(self._prior_scores),
+                'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist(),
+                'set_aside': [dict(e) for e in self.set_aside_learning]}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore what :meth:`state_dict` saved (same archive); replays the observations."""
+        if int(state.get('num_candidates', -1)) != self.num_candidates:
+            raise ValueError(f'state is for {state.get("num_candidates")} candidates, this '
+                             f'SELA has {self.num_candidates}')
+        if 'config' in state:
+            self.config = SELAConfig.from_dict(state['config'])
+        self.goal = None
+        if state.get('goal') is not None:
+            self.set_goal(state['goal'])
+        indices = list(state.get('indices', []))
+        grs = np.asarray(state.get('generic_rewards', []), dtype=float).reshape(
+            len(indices), self.motion.gr_dim)
+        # Files written before standing starts were recorded: none.
+        standing = [bool(f) for f in state.get('standing_starts', [False] * len(indices))]
+        if len(standing) != len(indices):
+            raise ValueError(f'state has {len(indices)} indices but {len(standing)} '
+                             'standing_starts flags')
+        fall_indices = [int(i) for i in state.get('fall_indices', [])]
+        fallen = [bool(f) for f in state.get('fallen', [])]
+        if len(fall_indices) != len(fallen):
+            raise ValueError(f'state has {len(fall_indices)} fall_indices but {len(fallen)} '
+                             'fallen flags')
+        set_aside = []
+        for episode in state.get('set_aside', []):
+            n = len(episode['indices'])
+            set_aside.append({
+                'reason': str(episode.get('reason', '')),
+                'indices': [int(i) for i in episode['indices']],
+                'generic_rewards': np.asarray(episode['generic_rewards'], dtype=float).reshape(
+                    n, self.motion.gr_dim).tolist(),
+                'standing_starts': [bool(f) for f in episode.get('standing_starts',
+                                                                 [False] * n)]})
+        self.reset_learning()
+        self.forget_falls()
+        self.set_aside_learning = set_aside[-SET_ASIDE_KEPT:]
+        for i, y, st in zip(indices, grs, standing):
+            self.tell(int(i), y, st)
+        for i, f in zip(fall_indices, fallen):
+            self.tell_fall(i, f)
+        # The replay above scored the priors without the falls between the steps: the
+        # scores saved are those the steps gave as they came.
+        scores = state.get('prior_scores')
+        if isinstance(scores, dict) and set(scores) == set(self._prior_scores):
+            self._prior_scores = {k: float(v) for k, v in scores.items()}

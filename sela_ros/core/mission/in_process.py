@@ -1,0 +1,164 @@
+"""The mission in process: the ``sela_adapter`` node's decision loop, driven directly. ROS-free.
+
+:func:`run_mission` drives a :class:`~sela_ros.core.mission.MissionStepper` (the object the
+``sela_adapter`` node drives from DDS messages) against an environment, a planner and the
+damage detector called directly: every experiment that reports SELA's figures goes through
+it, so a figure is what a user of the nodes gets. For the same seed the node and this loop
+take the same gaits in the same order: they are the same code, fed the same observations.
+
+One step:
+
+1. the reward selection layer (``planner``) gives the whole path to the goal; the stepper
+   takes the waypoint ``planner.lookahead`` along it (and, looking two steps ahead, the next);
+2. ``SELA.ask`` picks the behaviour whose predicted end is closest to the waypoint (UCB);
+3. the robot executes it; the observed generic reward comes back;
+4. while adapting, ``SELA.tell`` learns it;
+5. the damage detector compares it with the prediction; when it fires, adaptation starts.
+
+A fall is got up from where the robot lies (the environment rights it); with
+``reset_on_fall`` the robot is put back at the start instead, as the node does through
+``/sim_bridge/reset``.
+"""
+import itertools
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sela_ros.core.detection import DamageDetector, DetectorConfig
+from sela_ros.core.geometry import quaternion_to_yaw, yaw_to_quaternion
+from sela_ros.core.mission.stepper import MissionStepper
+from sela_ros.core.mission.stepper_io import (
+    GoalsReceived,
+    MissionEnded,
+    OutcomeReceived,
+    PlanReceived,
+    PoseObserved,
+    PublishStatus,
+    RequestPlan,
+    RequestReset,
+    ResetDone,
+    SendGait,
+    StepperConfig,
+    VerdictReceived,
+)
+from sela_ros.core.planning import PlanningError
+
+
+def as_seen_in_odometry(pose):
+    """The pose after a trip through nav_msgs/Odometry (yaw -> quaternion -> yaw); a point
+    robot's (x, y) as it is."""
+    pose = np.asarray(pose, dtype=float).reshape(-1)
+    if len(pose) != 3:
+        return pose.copy()
+    x, y, yaw = (float(v) for v in pose)
+    return np.array([x, y, quaternion_to_yaw(*yaw_to_quaternion(yaw))])
+
+
+@dataclass
+class MissionRun:
+    """What a mission did.
+
+    Attributes:
+        success: every goal reached (judged on the observed pose, as the adapter judges).
+        end: the stepper's :class:`~sela_ros.core.mission.stepper_io.MissionEnded`.
+        logic: the stepper's :class:`~sela_ros.core.mission.MissionLogic` (``records``: the
+            steps).
+        goal_steps: gaits executed when each goal of the mission was reached.
+        falls: steps that ended fallen.
+    """
+
+    success: bool
+    end: MissionEnded
+    logic: object
+    goal_steps: list = field(default_factory=list)
+    falls: int = 0
+
+    @property
+    def steps(self) -> int:
+        """Gaits executed over the whole mission."""
+        return len(self.logic.records)
+
+
+def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=None,
+                on_step=None, detect=True) -> MissionRun:
+    """Run one mission in process, through the node's stepper, from wherever ``env`` stands.
+
+    Args:
+        env: the robot: ``observed_pose()`` (the latest observation), ``true_pose()``,
+            ``execute(index)`` (runs the archive's gait ``index``, returns the observed pose
+            after it; a fallen robot is righted where it lies), ``reset()`` (back at the
+            start: only with ``stepper_config.reset_on_fall``); optionally ``falls`` (a
+            count) and ``standing`` (the next gait starts from the settled standing state).
+        sela: the :class:`~sela_ros.core.learning.SELA` learner (e.g.
+            :func:`~sela_ros.core.mission.make_sela`).
+        goals: ``[(x, y), ...]`` visited in order (one goal: a plain mission).
+        planner: ``(start_xy, goal_xy) -> path (n, 2)``, the reward selection layer.
+        detector_config: the damage detector's (:class:`DetectorConfig`, the node's
+            defaults if None).
+        stepper_config: :class:`StepperConfig` (the node's defaults if None).
+        on_step: called with each step's record once the step is judged.
+        detect: run the damage detector (False: adaptation only as ``adapt_on_start``).
+    """
+    config = stepper_config or StepperConfig()
+    stepper = MissionStepper(sela, config)
+    detector = DamageDetector(detector_config or DetectorConfig())
+    clock = itertools.count()  # the stepper's time: no time-out fires in process
+    goals = [tuple(float(v) for v in np.asarray(g, dtype=float).reshape(-1)[:2])
+             for g in goals]
+
+    def odometry():
+        return PoseObserved(as_seen_in_odometry(env.true_pose()))
+
+    commands = deque(stepper.handle(odometry(), next(clock)))
+    commands += stepper.handle(GoalsReceived(tuple(goals)), next(clock))
+    end, goal_steps, falls = None, [], 0
+    while commands:
+        command = commands.popleft()
+        events = []
+        if isinstance(command, RequestPlan):
+            try:
+                path = planner(np.asarray(command.start, float)[:2], command.goal)
+                events.append(PlanReceived(command.step, command.start,
+                                           path=tuple(map(tuple, np.asarray(path, float)))))
+            except PlanningError as exc:
+                events.append(PlanReceived(command.step, command.start, None, str(exc)))
+        elif isinstance(command, SendGait):
+            before = np.asarray(env.observed_pose(), dtype=float).copy()
+            standing = bool(getattr(env, 'standing', False))
+            fell = getattr(env, 'falls', 0)
+            after = np.asarray(env.execute(command.index), dtype=float).copy()
+            fallen = getattr(env, 'falls', 0) > fell
+            falls += int(fallen)
+            observed = sela.motion.generic_reward(before, after)
+            events.append(OutcomeReceived(command.behavior_id, tuple(observed), tuple(after),
+                                          fallen, true_pose=tuple(env.true_pose()),
+                                          standing_start=standing, start_pose=tuple(before)))
+            if detect:
+                verdict = detector.observe(command.predicted_gr, observed, command.sigma)
+                events.append(VerdictReceived(command.behavior_id, verdict.fire, verdict.error,
+                                              detector.config.threshold))
+            else:
+                events.append(VerdictReceived(command.behavior_id, False))
+        elif isinstance(command, RequestReset):
+            env.reset()
+            events += [ResetDone(True, 'robot back at the start'), odometry()]
+        elif isinstance(command, PublishStatus) and 'goal_reached' in command.values:
+            goal_steps.append(len(stepper.logic.records))
+        elif isinstance(command, MissionEnded):
+            end = command
+            if command.success:
+                goal_steps.append(len(stepper.logic.records))
+        learnt = len(stepper.logic.records)
+        for event in events:
+            commands += stepper.handle(event, next(clock))
+        if isinstance(command, SendGait):
+            if len(stepper.logic.records) == learnt:  # the stepper refused the outcome
+                raise RuntimeError(f'outcome of command {command.behavior_id} refused: '
+                                   'the environment reported an implausible step')
+            if on_step is not None:
+                on_step(stepper.logic.records[-1])
+    if end is None:  # the stepper stopped without a result: a bug, said as one
+        raise RuntimeError(f'the mission stopped in state {stepper.state.value} without a '
+                           'result')
+    return MissionRun(bool(end.success), end, stepper.logic, goal_steps, falls)

@@ -1,0 +1,141 @@
+"""The planner node over DDS: maps from a map_server file, from the ``map`` topic, and bad
+maps refused with the reason while the current map is kept."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from nav_msgs.msg import OccupancyGrid
+from nav_msgs.msg import Path as PathMsg
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+
+from sela_ros.core.planning import load_map_file
+from sela_ros.nodes import conversions as conv
+from sela_ros.nodes import grid_conversions as grids
+from sela_ros.nodes.interface import LATCHED_QOS, STATE_QOS
+
+from ros_graph import Client, NodeProcesses
+
+pytestmark = [pytest.mark.dds]
+
+MAPS = Path(__file__).resolve().parents[2] / 'config' / 'maps'
+
+
+class PlannerWatch:
+    """What the planner publishes: its map, its paths, its diagnostics."""
+
+    def __init__(self, client):
+        self.client = client
+        self.maps, self.paths, self.statuses = [], [], []
+        node = client.node
+        node.create_subscription(OccupancyGrid, '/planner/map', self.maps.append, LATCHED_QOS)
+        node.create_subscription(PathMsg, '/planner/path', self.paths.append, LATCHED_QOS)
+        node.create_subscription(DiagnosticArray, '/diagnostics',
+                                 lambda m: self.statuses.extend(m.status), STATE_QOS)
+        self.make_plan = node.create_client(GetPlan, '/planner/make_plan')
+        self.set_params = node.create_client(SetParameters, '/planner/set_parameters')
+        self.stamp = 100.0
+
+    def errors(self, text):
+        return [s.message for s in self.statuses
+                if s.name == 'planner' and s.level == DiagnosticStatus.ERROR
+                and text in s.message]
+
+    def map_grid(self):
+        return grids.occupancy_grid_from_msg(self.maps[-1])
+
+    def path(self, start, goal):
+        """The full path the planner publishes for a plan from ``start`` to ``goal``."""
+        self.stamp += 1.0
+        request = GetPlan.Request(start=conv.pose_stamped(start, stamp=self.stamp),
+                                  goal=conv.pose_stamped(goal))
+        self.client.call(self.make_plan, request)
+        stamp = conv.time_to_msg(self.stamp)
+        self.client.spin_until(lambda: any(p.header.stamp == stamp for p in self.paths), 30,
+                               'the path of the plan')
+        path = next(p for p in reversed(self.paths) if p.header.stamp == stamp)
+        return conv.path_from_msg(path)
+
+    def set_map_file(self, value):
+        request = SetParameters.Request(parameters=[Parameter(
+            name='map.file', value=ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                                  string_value=str(value)))])
+        return self.client.call(self.set_params, request).results[0]
+
+
+def _segments_free(grid, path):
+    for a, b in zip(path, path[1:]):
+        for t in np.linspace(0.0, 1.0, 40):
+            if not grid.is_free(grid.world_to_cell(a + t * (b - a))):
+                return False
+    return True
+
+
+def _wall_map(frame_id='map'):
+    """A 4 m x 3 m field at 0.1 m with a wall x in [1.5, 1.7) for y < 2 m; row 0 at y = -1."""
+    values = np.zeros((30, 40), dtype=np.int8)
+    values[:20, 15:17] = 100
+    values[25:, :5] = -1  # unknown: occupied by default
+    msg = grids.occupancy_grid_to_msg(values > 0, 0.1, (-1.0, -1.0), frame_id=frame_id)
+    msg.data = values.reshape(-1).tolist()
+    return msg
+
+
+@pytest.fixture
+def planner():
+    nodes = NodeProcesses({'planner': {'map.file': str(MAPS / 'maze.yaml')}},
+                          names=('planner',))
+    client = Client()
+    yield nodes, PlannerWatch(client)
+    client.close()
+    nodes.stop()
+
+
+def test_maps_from_a_file_and_the_map_topic_and_bad_ones_refused(planner, tmp_path):
+    nodes, watch = planner
+    client = watch.client
+    maze = load_map_file(MAPS / 'maze.yaml')
+    client.spin_until(lambda: watch.maps, 60, 'the planner map')
+    occupied, resolution, origin = watch.map_grid()
+    assert np.array_equal(occupied, maze.occupied) and resolution == pytest.approx(0.05)
+    np.testing.assert_allclose(origin, maze.origin)
+    path = watch.path((0.0, 0.0), (4.5, 4.5))
+    assert np.allclose(path[0], (0.0, 0.0)) and np.allclose(path[-1], (4.5, 4.5))
+    assert _segments_free(maze, path) and len(path) > 3  # through the maze, around walls
+
+    # A map on /map (as map_server latches it) replaces the file's.
+    map_pub = client.node.create_publisher(OccupancyGrid, '/map', LATCHED_QOS)
+    map_pub.publish(_wall_map())
+    client.spin_until(lambda: watch.map_grid()[0].shape == (30, 40), 30,
+                      'the map from /map in use')
+    occupied = watch.map_grid()[0]
+    assert occupied[5, 15] and occupied[29, 0] and not occupied[25, 10]
+    path = watch.path((0.0, 0.0), (2.5, 0.0))
+    assert path[:, 1].max() > 1.0 + 0.25  # around the wall's end (y 1 m) with the margin
+
+    # Bad maps: refused with the reason, the current one kept and still planned on.
+    bad = _wall_map()
+    bad.data = bad.data[:-1]
+    map_pub.publish(bad)
+    client.spin_until(lambda: watch.errors('map on topic rejected'), 30, 'bad map reported')
+    assert '1199 cells for 40 x 30' in watch.errors('map on topic rejected')[0]
+    rotated = _wall_map()
+    rotated.info.origin.orientation = conv.yaw_to_quaternion(0.3)
+    map_pub.publish(rotated)
+    client.spin_until(lambda: watch.errors('yaw'), 30, 'rotated map reported')
+    bad_file = tmp_path / 'bad.yaml'
+    bad_file.write_text('image: wall.pgm\nresolution: 0.05\norigin: 5\n')
+    result = watch.set_map_file(bad_file)
+    assert not result.successful and 'origin must be a list' in result.reason
+    client.spin_until(lambda: watch.errors('origin must be a list'), 30, 'bad file reported')
+    assert watch.map_grid()[0].shape == (30, 40)
+    assert watch.path((0.0, 0.0), (2.5, 0.0))[:, 1].max() > 1.25
+
+    # A good file at run time is taken.
+    assert watch.set_map_file(MAPS / 'corridor.yaml').successful
+    corridor = load_map_file(MAPS / 'corridor.yaml')
+    client.spin_until(lambda: watch.map_grid()[0].shape == corridor.occupied.shape, 30,
+                      'the corridor map in use')
+    assert all(nodes.alive().values()), nodes.logs()

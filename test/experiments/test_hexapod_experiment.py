@@ -1,0 +1,194 @@
+"""``sela-experiment hexapod``: results schema, argument errors, the oracle table."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sela_ros.core.storage import Archive, make_metadata
+from sela_ros.experiments.cli import main
+from sim_bridge import experiment_env
+from sim_bridge.evaluation import evaluate_gait
+from sim_bridge.experiment_env import HexapodEnvironment, chained_runs, oracle_table
+from sim_bridge.settings import simulator_settings
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def tiny_archive(path, n=8, seed=0):
+    """A synthetic archive: random gaits with made-up intact outcomes (fast to run)."""
+    rng = np.random.default_rng(seed)
+    gr = np.column_stack([rng.uniform(-0.3, 0.3, (n, 2)), rng.uniform(-0.5, 0.5, n)])
+    metadata = make_metadata(**simulator_settings(), descriptor_name='final_xy',
+                             descriptor_bounds=[[-0.6, 0.6], [-0.6, 0.6]],
+                             fitness_name='none', grid_shape=[4, 4], n_evaluations=n,
+                             seed=seed)
+    Archive(rng.random((n, 36)), gr[:, :2], gr, np.zeros(n), metadata).save(path)
+    return path
+
+
+@pytest.fixture(scope='module')
+def archive_path(tmp_path_factory):
+    return tiny_archive(tmp_path_factory.mktemp('archive') / 'tiny.npz')
+
+
+def test_hexapod_cli_writes_schema(archive_path, tmp_path):
+    out = tmp_path / 'hex'
+    argv = ['hexapod', '--replicates', '2', '--seed', '3', '--out', str(out),
+            '--archive', str(archive_path), '--max-steps', '2', '--ite-iterations', '1',
+            '--oracle-cache', str(tmp_path / 'cache'), '--quiet', '--workers', '2']
+    assert main(argv) == 0
+    doc = json.loads((out / 'results.json').read_text())
+    assert doc['scenario'] == 'hexapod' and doc['replicates'] == 2
+    assert list(doc['methods']) == ['sela', 'ite_uncertainty', 'ite_4dir', 'oracle']
+    for m in doc['methods'].values():
+        assert {'success', 'steps', 'learning_iterations', 'falls'} <= set(m)
+        assert len(m['success']) == len(m['steps']) == len(m['learning_iterations']) == 2
+        assert all(isinstance(s, bool) for s in m['success'])
+        assert all(isinstance(s, int) for s in m['steps'] + m['learning_iterations'])
+        assert all(0 <= s <= 2 for s in m['steps'])
+    assert doc['methods']['sela']['learning_iterations'] == [0, 0]
+    assert doc['methods']['ite_uncertainty']['learning_iterations'] == [1, 1]
+    assert doc['methods']['ite_4dir']['learning_iterations'] == [4, 4]
+    assert doc['parameters']['damage'] == 'remove:middle_right'
+    assert (out / 'figure.png').stat().st_size > 1000
+    # Same seed, same results (the oracle table now comes from the cache), serially too.
+    out2 = tmp_path / 'hex2'
+    argv2 = [a if a != str(out) else str(out2) for a in argv][:-2] + ['--workers', '1']
+    assert main(argv2) == 0
+    assert json.loads((out2 / 'results.json').read_text())['methods'] == doc['methods']
+
+
+def test_hexapod_cli_on_a_course_counts_collisions_and_draws_paths(archive_path, tmp_path):
+    out = tmp_path / 'maze'
+    argv = ['hexapod', '--replicates', '1', '--seed', '3', '--out', str(out), '--map', 'maze',
+            '--archive', str(archive_path), '--max-steps', '2', '--ite-iterations', '1',
+            '--methods', 'sela,ite_4dir', '--quiet']
+    assert main(argv) == 0
+    doc = json.loads((out / 'results.json').read_text())
+    assert doc['parameters']['course'] == 'maze' and doc['parameters']['planner'] == 'grid'
+    # Without --goal: the course's mission, its goals in order.
+    assert doc['parameters']['goal'] == [4.5, 4.5]
+    assert doc['parameters']['via'] == [[3.0, 0.0], [1.5, 1.5], [3.0, 3.0]]
+    for name, m in doc['methods'].items():
+        assert m['collisions'][0] >= 0 and doc['summary'][name]['collisions'] >= 0
+        # The start, then one point per gait (learning trials included).
+        assert len(m['paths'][0]) == 1 + m['steps'][0] + m['learning_iterations'][0]
+        assert m['goal_steps'][0] == []  # 2 steps reach none of the goals
+    assert (out / 'paths.png').stat().st_size > 1000
+
+
+def test_course_environment_counts_steps_that_end_in_an_obstacle():
+    from sela_ros.core.planning import OccupancyGrid
+    from sela_ros.experiments.courses import CourseEnvironment
+
+    class Walker:  # moves 1 m along x per gait
+        def __init__(self):
+            self.x = 0.0
+
+        def reset(self):
+            self.x = 0.0
+
+        def true_pose(self):
+            return np.array([self.x + 0.5, 0.5, 0.0])
+
+        def observed_pose(self):
+            return self.true_pose()
+
+        def execute(self, index):
+            self.x += 1.0
+            return self.true_pose()
+
+    occ = np.zeros((1, 5), dtype=bool)
+    occ[0, 2] = True  # x in [2, 3)
+    env = CourseEnvironment(Walker(), OccupancyGrid(occ, 1.0))
+    env.reset()
+    for _ in range(6):  # 1.5 free, 2.5 in the obstacle, 3.5, 4.5 free, then off the map
+        env.execute(0)
+    assert env.collisions == 1
+    assert env.path[0] == [0.5, 0.5] and len(env.path) == 7
+
+
+@pytest.mark.parametrize('extra', [
+    ['--map', 'no_such_course'],
+    ['--damage', 'remove:tail'],
+    ['--goal', '2'],
+    ['--goal', '2,nan'],
+    ['--lookahead', '0'],
+    ['--archive', 'no_such_archive.npz'],
+    ['--methods', 'sela,nope'],
+    ['--noise-std', '-0.1'],
+    ['--max-steps', '0'],
+])
+def test_bad_arguments_exit_2_without_traceback(extra, archive_path, tmp_path):
+    args = ['hexapod', '--replicates', '2', '--out', 'x', '--archive', str(archive_path),
+            *extra]
+    proc = subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', *args],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=120,
+                          env={**os.environ, 'PYTHONPATH': str(REPO)})
+    assert proc.returncode == 2, proc.stderr
+    assert 'usage:' in proc.stderr and 'Traceback' not in proc.stderr
+
+
+def test_oracle_table_matches_evaluate_gait_and_is_cached(tmp_path, monkeypatch):
+    params = np.random.default_rng(7).random((3, 36))
+    gr, fallen = oracle_table(params, 'remove:middle_right', workers=2, cache_dir=tmp_path)
+    for i in range(3):
+        outcome = evaluate_gait(params[i], 'remove:middle_right')
+        np.testing.assert_allclose(gr[i], outcome.generic_reward, atol=1e-9)
+        assert fallen[i] == outcome.fallen
+    assert len(list(tmp_path.glob('oracle_*.npz'))) == 1
+
+    def boom(*a, **k):
+        raise AssertionError('recomputed instead of reading the cache')
+
+    monkeypatch.setattr(experiment_env, 'compute_oracle_table', boom)
+    gr2, fallen2 = oracle_table(params, 'remove:middle_right', cache_dir=tmp_path)
+    np.testing.assert_array_equal(gr2, gr)
+    np.testing.assert_array_equal(fallen2, fallen)
+    with pytest.raises(AssertionError):  # another damage is another table
+        oracle_table(params, 'remove:front_left', cache_dir=tmp_path)
+
+
+def test_environment_walks_without_reset_and_checks_index():
+    params = np.random.default_rng(1).random((2, 36))
+    with HexapodEnvironment(params, 'remove:middle_right', noise_std=0.0, seed=0) as env:
+        env.reset()
+        np.testing.assert_allclose(env.true_pose(), [0, 0, 0], atol=0.02)
+        assert env.standing  # the first gait starts as the tables' do
+        first = env.execute(0)
+        assert env.standing == (env.falls == 1)  # chained next, unless righted after a fall
+        np.testing.assert_allclose(first, env.true_pose())
+        second = env.execute(0)  # starts where the first ended
+        expected = evaluate_gait(params[0], 'remove:middle_right').generic_reward
+        np.testing.assert_allclose(first[:2], expected[:2], atol=0.02)
+        assert not np.allclose(second[:2], first[:2])
+        assert env.sim_seconds > 0
+        with pytest.raises(IndexError):
+            env.execute(2)
+        env.reset()
+        assert env.standing
+
+
+def test_chained_runs_count_each_pair_and_are_cached(tmp_path, monkeypatch):
+    """Each gait after each of its predecessors, from a standing start per pair; a pair whose
+    predecessor fell does not count; the second call reads the cache."""
+    params = np.random.default_rng(3).random((3, 36))
+    runs, falls = chained_runs(params, 'remove:rear_left', [0, 1], [[1, 2], [2, 2]],
+                               cache_dir=tmp_path)
+    assert runs.shape == falls.shape == (2,) and np.all(falls <= runs) and np.all(runs <= 2)
+    assert runs[1] in (0, 2)  # the same predecessor twice: both count or neither
+    assert [len(a) for a in chained_runs(params, 'remove:rear_left', [], [])] == [0, 0]
+
+    def boom(job):
+        raise AssertionError('ran again instead of reading the cache')
+
+    monkeypatch.setattr(experiment_env, '_chained_chunk', boom)
+    again = chained_runs(params, 'remove:rear_left', [0, 1], [[1, 2], [2, 2]],
+                         cache_dir=tmp_path)
+    assert np.array_equal(again[0], runs) and np.array_equal(again[1], falls)
+    with pytest.raises(AssertionError, match='ran again'):  # other pairs: not cached
+        chained_runs(params, 'remove:rear_left', [0], [[2, 1]], cache_dir=tmp_path)

@@ -1,0 +1,46 @@
+"""When the sela_adapter's archive may change (no DDS: the checks over a stand-in node)."""
+from types import SimpleNamespace
+
+import numpy as np
+
+from sela_ros.core.mission import stepper_io as io
+from sela_ros.core.storage import default_archive_path
+from sela_ros.nodes import adapter_support
+
+
+def _change(value, state, learned=0):
+    stepper = SimpleNamespace(state=state,
+                              sela=SimpleNamespace(observations=(np.zeros(learned),)))
+    return adapter_support.archive_change(value, '/nowhere/in_use.npz', stepper,
+                                          'sela_adapter')
+
+
+def test_a_file_that_cannot_be_loaded_is_refused_for_its_problem_even_mid_step(tmp_path):
+    broken = tmp_path / 'broken.npz'
+    broken.write_bytes(b'PK\x03\x04 truncated')
+    for state in io.State:
+        reason, _, archive = _change(str(broken), state, learned=3)
+        assert archive is None
+        assert reason is not None and 'broken.npz' in reason, (state, reason)
+        assert 'mid-step' not in reason and 'learned' not in reason
+
+
+def test_a_good_file_is_refused_mid_step_and_while_something_is_learned():
+    good = str(default_archive_path())
+    for state in (io.State.PLANNING, io.State.EXECUTING, io.State.VERDICT,
+                  io.State.RESETTING):
+        reason, _, archive = _change(good, state)
+        assert archive is None
+        assert 'mid-step' in reason and 'between steps' in reason, (state, reason)
+    reason, _, _ = _change(good, io.State.IDLE, learned=2)
+    assert '2 observation(s)' in reason and 'sela_adapter/clear' in reason
+    reason, path, archive = _change(good, io.State.IDLE)  # nothing learned, between steps
+    assert reason is None and len(archive) > 0 and str(path) == good
+
+
+def test_the_file_in_use_is_kept_and_not_loaded_again(tmp_path):
+    in_use = tmp_path / 'in_use.npz'
+    in_use.write_bytes(b'not even an archive')  # never read: it is the file in use
+    reason, path, archive = adapter_support.archive_change(str(in_use), str(in_use), None,
+                                                           'sela_adapter')
+    assert reason is None and archive is None

@@ -1,0 +1,24 @@
+"""Liveness from the middleware's liveliness changes: which writer is lost, which never came."""
+
+
+from sela_ros.nodes.heartbeat import LivenessWatch
+
+
+def test_a_lost_writer_is_reported_even_while_another_one_lives():
+    watch = LivenessWatch(['planner', 'sim_bridge'], grace=2.0, now=0.0)
+    assert watch.changed('planner', 1, 1, now=0.5) == 'alive'
+    assert watch.check(now=1.0) == ([], [])  # sim_bridge not up yet: start-up, no alarm
+    assert watch.check(now=2.5) == (['sim_bridge'], [])  # never came: silent
+    assert 'never alive' in watch.why('sim_bridge', now=2.5)
+    assert watch.changed('planner', 2, 1, now=3.0) is None  # a second writer (a forger's)
+    assert watch.changed('planner', 1, -1, now=4.0) == 'lost'  # the planner's lease expired
+    assert watch.check(now=4.1) == (['planner'], [])
+    assert 'liveliness lease' in watch.why('planner', now=4.1)
+    assert watch.changed('planner', 2, 1, now=5.0) == 'alive'  # restarted
+    assert watch.changed('sim_bridge', 1, 1, now=5.0) == 'alive'
+    assert watch.check(now=5.1) == ([], ['planner', 'sim_bridge'])
+    # Between two reads a writer was lost and another came: the summed change is 0.
+    assert watch.changed('planner', 2, 0, not_alive_change=1, now=6.0) == 'lost'
+    assert watch.changed('planner', 1, 0, now=7.0) == 'lost'  # fewer alive than before
+
+

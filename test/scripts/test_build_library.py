@@ -1,0 +1,135 @@
+"""The damage library's build plan: its conditions, its covering gaits, the gaits inferred."""
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim_bridge.damage import parse_damage
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope='module')
+def lib():
+    spec = importlib.util.spec_from_file_location('build_library',
+                                                  ROOT / 'scripts' / 'build_library.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_plan_spans_the_kinds_parses_and_fits_the_budget(lib):
+    names = lib.conditions()
+    assert len(set(names)) == len(names)
+    specs = [parse_damage(n) for n in names]  # every one a valid damage
+    assert sum(len(s.removed) == 2 for s in specs) == 15  # every pair of legs removed
+    assert {s.shortened[0][1] for s in specs if len(s.shortened) == 1} == \
+        set(lib.SHORTEN_FACTORS)
+    assert any(s.blocked for s in specs) and any(s.weakened for s in specs)
+    _, evaluations, hours, _ = lib.plan(12442, lib.DEFAULT_GAITS)
+    assert evaluations == len(names) * lib.DEFAULT_GAITS and hours <= lib.BUDGET_CORE_HOURS
+    singles = [n for n in names if n.startswith('remove:') and ',' not in n]
+    _, shipped_whole, _, _ = lib.plan(12442, lib.DEFAULT_GAITS, shipped=singles)
+    assert shipped_whole == evaluations - len(singles) * lib.DEFAULT_GAITS
+
+
+def test_the_gaits_evaluated_cover_the_map(lib):
+    rng = np.random.default_rng(0)
+    descriptors = rng.random((2000, 3))
+    subset = lib.gait_subset(descriptors, 200)
+    assert len(set(subset.tolist())) == 200
+    np.testing.assert_array_equal(subset, lib.gait_subset(descriptors, 200))  # resumable
+    gap = np.min(np.linalg.norm(descriptors[:, None] - descriptors[subset][None], axis=2),
+                 axis=1)
+    random = rng.choice(2000, 200, replace=False)
+    gap_random = np.min(np.linalg.norm(descriptors[:, None] - descriptors[random][None],
+                                       axis=2), axis=1)
+    assert gap.max() < gap_random.max()
+
+
+def test_after_the_covering_gaits_come_the_fastest_and_the_order_is_kept(lib):
+    rng = np.random.default_rng(2)
+    descriptors = rng.random((1000, 3))
+    speed = rng.random(1000)
+    covering = lib.gait_subset(descriptors, 100)
+    subset = lib.gait_subset(descriptors, 300, speed, covering=100)
+    # A longer plan resumes a shorter one: its first gaits are the covering ones, in order.
+    np.testing.assert_array_equal(subset[:100], covering)
+    rest = subset[100:]
+    assert len(set(subset.tolist())) == 300
+    others = np.setdiff1d(np.arange(1000), covering)
+    fastest = others[np.argsort(-speed[others])][:200]
+    np.testing.assert_array_equal(np.sort(rest), np.sort(fastest))
+    assert np.all(np.diff(speed[rest]) <= 0)
+
+
+def test_the_gaits_not_evaluated_are_inferred_from_their_neighbours(lib):
+    rng = np.random.default_rng(1)
+    descriptors = rng.random((1500, 2))
+    base = np.column_stack([descriptors, np.zeros(1500)])
+    # A damage that takes a smooth share of every gait's displacement, and tips over the
+    # gaits of one corner.
+    truth = base * (0.3 + 0.4 * descriptors[:, :1])
+    falls = (descriptors[:, 0] > 0.8) & (descriptors[:, 1] > 0.8)
+    subset = lib.gait_subset(descriptors, 300)
+    gr, fallen = lib.infer(descriptors, base, subset, truth[subset], falls[subset], 0.1)
+    np.testing.assert_array_equal(gr[subset], truth[subset])
+    assert np.abs(gr - truth).max() < 0.05
+    assert np.mean(fallen == falls) > 0.97
+
+
+class _Map:
+    """What the build reads of an archive: gaits, descriptors, generic rewards."""
+
+    def __init__(self, rng, size=400):
+        self.params = rng.random((size, 36))
+        self._descriptors = rng.random((size, 2))
+        self.generic_reward = np.column_stack([self._descriptors, np.zeros(size)]) * 0.3
+        self.kernel_sigma = 0.3
+
+    def __len__(self):
+        return len(self.params)
+
+    def normalised_descriptors(self):
+        return self._descriptors
+
+
+def test_assembly_takes_whole_shipped_tables_and_infers_the_rest(lib, tmp_path):
+    from sela_ros.core.learning import DamagePriors, params_checksum
+    from sela_ros.core.learning.damage_priors import load_damage_priors
+
+    archive = _Map(np.random.default_rng(3))
+    m = len(archive)
+    checksum = params_checksum(archive.params)
+    runs = np.zeros((1, m), int)
+    runs[0, 5] = 4
+    falls = np.zeros((1, m), int)
+    falls[0, 5] = 1
+    whole = archive.generic_reward * 0.5
+    shipped = DamagePriors(('remove:front_left',), whole[None], np.zeros((1, m), bool),
+                           checksum, runs, falls)
+    pair = 'remove:front_left,remove:rear_right'
+    subset = lib.archive_subset(archive, 100)
+    folder = tmp_path / lib._slug(pair)
+    folder.mkdir()
+    truth = archive.generic_reward * 0.25
+    np.savez(folder / '000000.npz', gaits=subset[:60], generic_reward=truth[subset[:60]],
+             fallen=np.zeros(60, bool))
+    out = tmp_path / 'library.npz'
+    only = {'remove:front_left', pair, 'remove:middle_left,remove:middle_right'}
+    with pytest.raises(SystemExit, match='60 of 100'):
+        lib.assemble(archive, tmp_path, 100, out, shipped, only)
+    lib.assemble(archive, tmp_path, 100, out, shipped, only, partial=True)
+    library = load_damage_priors(out, archive.params)
+    # Nothing evaluated on both middle legs: left out, not made up.
+    assert library.names == ('remove:front_left', pair)
+    np.testing.assert_allclose(library.generic_reward[0], whole, atol=1e-6)
+    gaits, chained_runs, chained_falls = library.chained(0)
+    assert gaits.tolist() == [5] and chained_runs.tolist() == [4] and chained_falls.tolist() == [1]
+    inferred = library.generic_reward[1]
+    np.testing.assert_allclose(inferred[subset[:60]], truth[subset[:60]], atol=1e-6)
+    # The gaits not evaluated: nearer the damaged robot's outcomes than the intact map.
+    rest = np.setdiff1d(np.arange(m), subset[:60])
+    assert np.abs(inferred[rest] - truth[rest]).mean() < \
+        0.5 * np.abs(archive.generic_reward[rest] - truth[rest]).mean()
