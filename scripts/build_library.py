@@ -151,8 +151,9 @@ def build(archive, out, gaits, chunk, workers, only=None, skip=()):
     def save(result, n):
         spec, part, gr, fallen = result
         first = int(np.flatnonzero(subset == part[0])[0])
-        atomic_write(Path(out) / _slug(spec) / f'{first:06d}.npz', lambda h: np.savez(
-            h, gaits=part, generic_reward=gr, fallen=fallen, damage=np.array(spec)))
+        atomic_write(Path(out) / _slug(spec) / f'{first:06d}.npz', lambda h: np.savez_compressed(
+            h, gaits=part.astype(np.int32), generic_reward=gr.astype(np.float32),
+            fallen=fallen, damage=np.array(spec)))
         spent = time.perf_counter() - begin
         print(f'[{n}/{len(jobs)}] {spec} gaits {first}-{first + len(part) - 1} '
               f'({spent:.0f} s, about {spent / n * (len(jobs) - n) / 60:.0f} min left)',
@@ -290,6 +291,9 @@ def main(argv=None):
                              'mapbuild/library, committed so that a build resumes anywhere)')
     parser.add_argument('--only', default=None,
                         help="';'-separated conditions to build (default: all)")
+    parser.add_argument('--kinds', default=None,
+                        help="comma-separated damage kinds (remove, shorten, block, weaken): "
+                             "only the conditions made of these")
     parser.add_argument('--plan', action='store_true', help='print the plan, build nothing')
     parser.add_argument('--assemble', action='store_true',
                         help='infer the gaits not evaluated and write --library')
@@ -317,6 +321,10 @@ def main(argv=None):
     if hours > BUDGET_CORE_HOURS and args.only is None:
         print(f'warning: over the {BUDGET_CORE_HOURS:g} core-hour budget', file=sys.stderr)
     only = set(args.only.split(';')) if args.only else None
+    if args.kinds:
+        kinds = set(args.kinds.split(','))
+        picked = {n for n in names if {item.split(':')[0] for item in n.split(',')} <= kinds}
+        only = picked if only is None else only & picked
     if args.check_inference:
         if shipped is None:
             parser.error(f'no damage priors beside {path} to check against')
