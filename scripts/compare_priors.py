@@ -87,7 +87,13 @@ def leave_out(priors, damage):
     from sela_ros.core.learning.damage_priors import RESIDUAL_SCALE
     from sim_bridge.damage import parse_damage
 
-    canonical = [parse_damage(n).canonical() for n in priors.names]
+    def canonical(name):
+        try:
+            return parse_damage(name).canonical()
+        except ValueError:  # a table that is no damage of the grammar is never left out
+            return None
+
+    canonical = [canonical(n) for n in priors.names]
     own = [i for i, c in enumerate(canonical) if c == parse_damage(damage).canonical()]
     out = set(own)
     for i in own:
