@@ -57,7 +57,7 @@ def test_goals_with_negative_coordinates_are_taken_as_written_in_the_docs():
 
 
 def test_a_method_added_later_joins_the_cells_with_the_seeds_of_a_run_of_all(tmp_path):
-    from test_hexapod_experiment import tiny_archive
+    from archive_fixtures import tiny_archive
 
     archive = tiny_archive(tmp_path / 'tiny.npz')
 

@@ -7,27 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from archive_fixtures import tiny_archive
 
-from sela_ros.core.storage import Archive, make_metadata
 from sela_ros.experiments.cli import main
 from sim_bridge import experiment_env
 from sim_bridge.evaluation import evaluate_gait
 from sim_bridge.experiment_env import HexapodEnvironment, chained_runs, oracle_table
-from sim_bridge.settings import simulator_settings
 
 REPO = Path(__file__).resolve().parents[2]
-
-
-def tiny_archive(path, n=8, seed=0):
-    """A synthetic archive: random gaits with made-up intact outcomes (fast to run)."""
-    rng = np.random.default_rng(seed)
-    gr = np.column_stack([rng.uniform(-0.3, 0.3, (n, 2)), rng.uniform(-0.5, 0.5, n)])
-    metadata = make_metadata(**simulator_settings(), descriptor_name='final_xy',
-                             descriptor_bounds=[[-0.6, 0.6], [-0.6, 0.6]],
-                             fitness_name='none', grid_shape=[4, 4], n_evaluations=n,
-                             seed=seed)
-    Archive(rng.random((n, 36)), gr[:, :2], gr, np.zeros(n), metadata).save(path)
-    return path
 
 
 @pytest.fixture(scope='module')

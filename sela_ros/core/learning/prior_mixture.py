@@ -98,7 +98,9 @@ class Mixture:
         base_gr = np.asarray(base_gr, dtype=float)
         k = base_gr.shape[1]
         w = self.weights
-        mixed = np.tensordot(w, np.asarray(tables)[:, :, :k], axes=1)
+        used = np.flatnonzero(w)  # the weights' fit is sparse: most tables weigh nothing
+        mixed = np.tensordot(w[used], np.asarray(tables)[used, :, :k], axes=1) if used.size \
+            else np.zeros_like(base_gr)
         mixed += (1.0 - float(w.sum())) * base_gr
         return mixed
 

@@ -294,7 +294,7 @@ def test_sela_takes_the_chained_runs_of_the_table_it_walks_on():
 
 
 def test_experiments_use_the_tables_beside_the_archive_and_refuse_other_cells(tmp_path):
-    from test_hexapod_experiment import tiny_archive
+    from archive_fixtures import tiny_archive
 
     from sela_ros.core.storage import load_archive
     from sela_ros.experiments.campaign import cell_dir
@@ -330,7 +330,7 @@ def test_experiments_use_the_tables_beside_the_archive_and_refuse_other_cells(tm
 
 
 def test_cells_without_sela_do_not_care_about_sela_only_parameters(tmp_path):
-    from test_hexapod_experiment import tiny_archive
+    from archive_fixtures import tiny_archive
 
     from sela_ros.core.storage import load_archive
 

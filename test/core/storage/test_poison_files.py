@@ -6,7 +6,7 @@ import zipfile
 
 import numpy as np
 import pytest
-from test_stepper import Driver, of, only
+from stepper_driver import Driver, of, only
 
 from sela_ros.core.learning.damage_priors import DamagePriorError, load_damage_priors, priors_path
 from sela_ros.core.mission.stepper_io import OutcomeReceived, Report, SendGait, State
