@@ -50,16 +50,20 @@ class ObservedHexapod:
 
     def __init__(self, robot, noise_std=0.0, seed=0, right_on_fall=True,
                  righting_time=RIGHTING_TIME):
-        noise_std = float(noise_std)
-        if not (math.isfinite(noise_std) and noise_std >= 0.0):
-            raise ValueError(f'noise_std must be a finite number >= 0, got {noise_std}')
         self.robot = robot
-        self.noise_std = noise_std
+        self.set_noise_std(noise_std)
         self.rng = np.random.default_rng(seed)
         self.right_on_fall = bool(right_on_fall)
         self.righting_time = float(righting_time)
         self.falls = 0
         self._observed = self._observe(self.robot.pose())
+
+    def set_noise_std(self, noise_std) -> None:
+        """The standard deviation (m) of the noise on observed positions from now on."""
+        noise_std = float(noise_std)
+        if not (math.isfinite(noise_std) and noise_std >= 0.0):
+            raise ValueError(f'noise_std must be a finite number >= 0, got {noise_std}')
+        self.noise_std = noise_std
 
     def _observe(self, true_pose):
         pose = np.array(true_pose, dtype=float)

@@ -267,7 +267,7 @@ class SimBridge(Node):
                         self._publish_state(self.env.robot.sim_time)
                         self.get_logger().warn(f"damage is now '{a}'")
                     elif kind == 'noise':
-                        self.env.noise_std = a
+                        self.env.set_noise_std(a)
             except Exception as exc:  # keep the bridge alive whatever one command does
                 self.get_logger().error(f'{kind} failed: {type(exc).__name__}: {exc}')
             finally:

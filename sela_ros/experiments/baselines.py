@@ -204,7 +204,7 @@ def _ask(sela, problem):
 
 def _exploit(env, problem, sela, learning_iterations):
     """Task phase with a frozen model: greedy (alpha 0) on its posterior mean."""
-    sela.config = dataclasses.replace(sela.config, acquisition_ucb_alpha=0.0)
+    sela.set_config(dataclasses.replace(sela.config, acquisition_ucb_alpha=0.0))
     return _task_phase(env, problem, _ask(sela, problem),
                        learning_iterations=learning_iterations)
 

@@ -136,7 +136,7 @@ class DamageDetectorNode(Node):
         # Everything checked: apply.
         for p in params:
             if p.name == 'heartbeat.timeout':
-                self.watch.grace = float(p.value)
+                self.watch.set_grace(p.value)
             elif p.name == 'outcome.max_displacement':
                 self.limits = OutcomeLimits(float(p.value))
         if config is not None:

@@ -66,6 +66,10 @@ class LivenessWatch:
         self.lost = {}  # node -> when it was lost
         self.silent = set()
 
+    def set_grace(self, seconds) -> None:
+        """How long a node may stay unseen after the watch started (``heartbeat.timeout``)."""
+        self.grace = float(seconds)
+
     def changed(self, node, alive_count, alive_change, not_alive_change=0, now=None):
         """A liveliness-changed event on ``node``'s topic (its alive count, and the changes
         of the alive and not-alive counts since the last event); returns 'lost', 'alive' or

@@ -22,3 +22,10 @@ def test_a_lost_writer_is_reported_even_while_another_one_lives():
     assert watch.changed('planner', 1, 0, now=7.0) == 'lost'  # fewer alive than before
 
 
+
+
+def test_a_longer_grace_set_at_run_time_holds_the_alarm_back():
+    watch = LivenessWatch(['planner'], grace=1.0, now=0.0)
+    watch.set_grace(5.0)
+    assert watch.check(now=2.0) == ([], [])
+    assert watch.check(now=5.5) == (['planner'], [])

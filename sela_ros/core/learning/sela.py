@@ -177,6 +177,14 @@ class SELA:
         self._prior_scores = {'table': 0.0, 'mixture': 0.0}
         self._mixture_fit = None
 
+    def set_config(self, config) -> None:
+        """Go on with another :class:`SELAConfig` (what is learnt stays)."""
+        if isinstance(config, dict):
+            config = SELAConfig.from_dict(config)
+        if not isinstance(config, SELAConfig):
+            raise TypeError(f'config must be a SELAConfig or a dict, got {type(config).__name__}')
+        self.config = config
+
     def forget_learning(self) -> None:
         """Back to the intact map: every observation forgotten, also what restarts set aside
         (what was learnt about falls stays, as in :meth:`reset_learning`)."""

@@ -270,3 +270,16 @@ def test_the_step_after_a_given_waypoint_goes_on_the_same_way_and_stops_at_the_g
     assert np.allclose(following_waypoint((0, 0, 1.0), (0.6, 0.0), (3.0, 0.0)), (1.2, 0.0))
     assert np.allclose(following_waypoint((0, 0), (0.6, 0.0), (0.8, 0.0)), (0.8, 0.0))
     assert following_waypoint((0, 0), (0.6, 0.0), (0.6, 0.0)) is None
+
+
+def test_another_config_keeps_what_was_learnt_and_a_wrong_one_is_refused():
+    import dataclasses
+
+    rng = np.random.default_rng(0)
+    candidates = rng.random((20, 2))
+    sela = SELA(candidates, np.zeros((20, 2)), PointMotion(), goal=[1.0, 0.0])
+    sela.tell(3, np.array([0.1, 0.0]))
+    sela.set_config(dataclasses.replace(sela.config, acquisition_ucb_alpha=0.0))
+    assert sela.config.acquisition_ucb_alpha == 0.0 and sela.observations[0].tolist() == [3]
+    with pytest.raises(TypeError, match='SELAConfig'):
+        sela.set_config(0.5)
