@@ -308,3 +308,17 @@ def test_random_gaits_mostly_upright():
     outcomes = [evaluate_gait(rng.random(36)) for _ in range(20)]
     assert sum(o.fallen for o in outcomes) <= 2
     assert all(np.all(np.abs(o.generic_reward[:2]) < 1.5) for o in outcomes)
+
+
+def test_the_observation_noise_can_change_and_a_bad_one_is_refused():
+    from sim_bridge.environment import ObservedHexapod
+
+    with hx.Hexapod() as robot:
+        env = ObservedHexapod(robot, 0.0, seed=1)
+        with pytest.raises(ValueError, match='noise_std'):
+            env.set_noise_std(float('nan'))
+        with pytest.raises(ValueError, match='noise_std'):
+            env.set_noise_std(-0.1)
+        env.set_noise_std(0.5)
+        env.reset()
+        assert np.linalg.norm(env.observed_pose()[:2] - env.true_pose()[:2]) > 1e-3
