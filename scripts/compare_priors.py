@@ -47,7 +47,9 @@ UNFORESEEN = tuple((f'remove:{leg}/own-left-out', f'remove:{leg}', True)
                        'shorten:front_left:0.5',
                        'block:rear_right.knee=0.3',
                        'remove:front_left,remove:middle_left',
-                       'shorten:rear_left:0.7,block:front_right.knee=-0.2'))
+                       'shorten:rear_left:0.7,block:front_right.knee=-0.2',
+                       # Between the library's grid points (0.3, 0.6, 0.8).
+                       'shorten:rear_left:0.7', 'shorten:middle_left:0.45'))
 FORESEEN = tuple((f'remove:{leg}', f'remove:{leg}', False)
                  for leg in ('middle_right', 'front_left', 'rear_right'))
 GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
@@ -60,7 +62,8 @@ LIBRARY_METHODS = ('library-select', 'library')
 #: Two conditions are near duplicates when their tables differ by less than this, rms over
 #: the gaits that stand in both, in units of the chaining error (RESIDUAL_SCALE).
 NEAR_DUPLICATE = 1.0
-CAMPAIGNS = ('campaign_priors', 'campaign_unforeseen', 'campaign_oracle_one_side')
+CAMPAIGNS = ('campaign_priors', 'campaign_unforeseen', 'campaign_oracle_one_side',
+             'campaign_oracle_between')
 
 
 def oracle_medians():
