@@ -299,7 +299,7 @@ class SelaAdapter(Node):
             start=conv.pose_stamped(command.start[:2], command.start[2], frame_id=self.frame_id),
             goal=conv.pose_stamped(command.goal, 0.0, frame_id=self.frame_id))
         self._call(self.plan_client, request,
-                   lambda answer: adapter_support.plan_event(answer, command))
+                   lambda answer: adapter_support.plan_event(answer, command, self.map))
 
     def _call(self, client, request, event):
         """Call ``client``; its answer (None: not available) becomes ``event(answer)``."""

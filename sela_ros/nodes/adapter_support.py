@@ -90,12 +90,15 @@ def goal_refusal(grid, goal, stepper):
                if running else ''))
 
 
-def plan_event(answer, command):
+def plan_event(answer, command, grid=None):
     """``planner/make_plan``'s answer to ``command`` as an event: the whole path to the goal
     (the stepper takes the waypoints off it); an empty one (or no answer: None) means no
-    path."""
+    path, and why is said from the planner's map (``grid``) where it shows (a goal that came
+    before the map did is not refused on arrival: the planner's empty answer is)."""
     poses = answer.plan.poses if answer is not None else []
     path = tuple((p.pose.position.x, p.pose.position.y) for p in poses) or None
+    problem = None if grid is None else grid.goal_problem(command.goal)
     reason = ('the planner did not answer' if answer is None
-              else 'the planner found no path (it says why on diagnostics)')
+              else f'goal ({command.goal[0]:.2f}, {command.goal[1]:.2f}) is {problem}'
+              if problem else 'the planner found no path (it says why on diagnostics)')
     return io.PlanReceived(command.step, tuple(command.start), reason=reason, path=path)

@@ -231,7 +231,10 @@ def run_client(args, damage, out, procs):
     plot_trajectory(out / 'trajectory.png', trajectory, steps, args.goals, damage, grid)
     verdict = 'goal reached' if summary['success'] else 'goal NOT reached'
     if result is not None and not result.success:
-        print(f'sela-demo: mission failed: {result.message}', file=sys.stderr, flush=True)
+        # Where the adapter could not say why there was no plan, the planner said it.
+        why = [m for m in mission.errors(ifc.PLANNER) if m not in result.message][-1:]
+        print(f'sela-demo: mission failed: {result.message}'
+              + ''.join(f' (planner: {m})' for m in why), file=sys.stderr, flush=True)
     elif result is None:
         print('sela-demo: no result from the adapter', file=sys.stderr, flush=True)
     print(f"sela-demo: {verdict} in {summary['steps']} steps "

@@ -44,3 +44,13 @@ def test_the_file_in_use_is_kept_and_not_loaded_again(tmp_path):
     reason, path, archive = adapter_support.archive_change(str(in_use), str(in_use), None,
                                                            'sela_adapter')
     assert reason is None and archive is None
+
+
+def test_an_empty_plan_says_why_from_the_planners_map_when_the_adapter_has_it():
+    from sela_ros.core.planning.maps import default_grid
+
+    command = io.RequestPlan(step=3, start=np.zeros(3), goal=np.array([40.0, 0.0]))
+    empty = SimpleNamespace(plan=SimpleNamespace(poses=[]))
+    assert 'off the map' in adapter_support.plan_event(empty, command, default_grid()).reason
+    assert 'diagnostics' in adapter_support.plan_event(empty, command).reason
+    assert 'did not answer' in adapter_support.plan_event(None, command, default_grid()).reason
