@@ -7,11 +7,11 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from killed_build import sigkill_once_journalled
 
 from sela_ros.core.storage import Archive, ArchiveError, load_archive
 from sela_ros.qd.cvt import XY_DUTY_BOUNDS, CVTMapElites, disc_samples, make_centroids
@@ -165,21 +165,8 @@ def test_cli_sigkill_then_resume_matches_uninterrupted(tmp_path):
     subprocess.run(_cli(reference, tmp_path / 'ref_ck.pkl'), check=True, cwd=REPO, env=env,
                    timeout=240, capture_output=True)
     out, ckpt = tmp_path / 'killed.npz', tmp_path / 'killed_ck.pkl'
-    proc = subprocess.Popen(_cli(out, ckpt), cwd=REPO, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
-    journal = Path(str(ckpt) + '.journal')
-    deadline = time.monotonic() + 180
-    while time.monotonic() < deadline:
-        if ckpt.exists() and journal.is_dir() and any(journal.glob('batch_*.npz')):
-            break
-        assert proc.poll() is None, 'the run ended before it could be killed'
-        time.sleep(0.01)
-    else:
-        proc.kill()
-        pytest.fail('no checkpoint within 180 s')
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait(timeout=10)
-    assert proc.returncode == -signal.SIGKILL and not out.exists()
+    returncode = sigkill_once_journalled(_cli(out, ckpt), ckpt, REPO, env)
+    assert returncode == -signal.SIGKILL and not out.exists()
     subprocess.run(_cli(out, ckpt, '--resume'), check=True, cwd=REPO, env=env, timeout=240,
                    capture_output=True)
     a, b = load_archive(reference), load_archive(out)

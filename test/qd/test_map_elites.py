@@ -7,11 +7,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from killed_build import sigkill_once_journalled
 
 from sela_ros.core.storage import load_archive
 from sela_ros.qd.evaluators import EvaluationResult, SyntheticEvaluator, arc_fitness
@@ -212,22 +212,8 @@ def test_sigkill_then_resume_matches_uninterrupted(tmp_path):
                    timeout=120, capture_output=True)
 
     out, ckpt = tmp_path / 'killed.npz', tmp_path / 'killed_ck.pkl'
-    proc = subprocess.Popen(_cli(out, ckpt), cwd=REPO, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
-    journal = Path(str(ckpt) + '.journal')
-    deadline = time.monotonic() + 60
-    # kill once a checkpoint and at least one journalled batch after it exist
-    while time.monotonic() < deadline:
-        if ckpt.exists() and journal.is_dir() and any(journal.glob('batch_*.npz')):
-            break
-        assert proc.poll() is None, 'the run ended before it could be killed'
-        time.sleep(0.01)
-    else:
-        proc.kill()
-        pytest.fail('no checkpoint within 60 s')
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait(timeout=10)
-    assert proc.returncode == -signal.SIGKILL
+    # Killed once a checkpoint and at least one journalled batch after it exist.
+    assert sigkill_once_journalled(_cli(out, ckpt), ckpt, REPO, env) == -signal.SIGKILL
     assert not out.exists()
 
     killed_at = GridMapElites.resume(ckpt, SyntheticEvaluator())
