@@ -39,17 +39,3 @@ def test_an_earlier_name_is_read_as_the_new_one_with_a_warning():
     # The earlier name wins: only a user's own file still says it, over the shipped one.
     assert overrides['priors.max_misfit'].value == 0.4
     assert len(said) == 2 and all('is now' in s for s in said)
-
-
-def nest(tree, name, value):
-    """Put ``value`` at the dotted ``name`` in ``tree``, as the dump does."""
-    head, _, rest = name.partition('.')
-    if not rest:
-        assert head not in tree, f'{name}: already a mapping in the dump'
-        tree[head] = value
-        return
-    branch = tree.setdefault(head, {})
-    assert isinstance(branch, dict), f'{name}: {head} is a value, cannot nest in it'
-    nest(branch, rest, value)
-
-
