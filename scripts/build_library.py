@@ -238,11 +238,10 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
         if spec in shipped_names:
             i = shipped_names.index(spec)
             gr, fallen = shipped.generic_reward[i], shipped.fallen[i]
-            gaits_run, gaits_fell = shipped.chained(i)[0], shipped.chained(i)
+            chained, runs_of, falls_of = shipped.chained(i)
             row_runs = np.zeros(len(archive), int)
             row_falls = np.zeros(len(archive), int)
-            row_runs[gaits_run] = gaits_fell[1]
-            row_falls[gaits_run] = gaits_fell[2]
+            row_runs[chained], row_falls[chained] = runs_of, falls_of
         else:
             done, done_gr, done_fallen = _evaluated(out, spec)
             if len(done) < planned and not partial:
@@ -255,7 +254,7 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
                 short.append(f'{spec} ({len(done)})')
             gr, fallen = infer(descriptors, archive.generic_reward, done, done_gr,
                                done_fallen, archive.kernel_sigma)
-            row_runs = row_falls = np.zeros(len(archive), int)
+            row_runs, row_falls = np.zeros(len(archive), int), np.zeros(len(archive), int)
         names.append(spec)
         tables.append(gr)
         falls.append(fallen)

@@ -112,7 +112,7 @@ def leave_out(priors, damage):
     return priors, names
 
 
-def run_one(archive, priors_all, case, goal, method, seed, args, library=None):
+def run_one(priors_all, case, goal, method, seed, args, library=None):
     """One mission through the experiment runner (``sela-experiment hexapod``'s SELA
     replicate: the node's stepper, detector, planner and defaults), the observation noise
     seeded as the ``sim_bridge`` node's ``seed``; the method sets the damage priors and
@@ -322,7 +322,7 @@ def main(argv=None):
                 for m in methods if (c[0], g, m, s) not in key]
         print(f'{len(todo)} runs to do ({len(done)} done already)', flush=True)
         for n, (case, goal, method, seed) in enumerate(todo, 1):
-            run = run_one(archive, priors, case, goal, method, seed, args, library)
+            run = run_one(priors, case, goal, method, seed, args, library)
             done.append(run)
             if args.out:
                 with open(args.out, 'a') as handle:

@@ -148,6 +148,7 @@ class SELA:
     def priors(self, priors):
         self._priors = priors
         self._support = {}  # the fall model's prior per table (FallRisk.table_support)
+        self._mixture_fit = None  # fitted to other tables
 
     @property
     def num_candidates(self) -> int:
@@ -291,7 +292,7 @@ class SELA:
         # when the next gait is chosen: the fit is kept for the steps it was made on.
         key = (np.asarray(idx).tobytes(), np.asarray(grs).tobytes(),
                np.asarray(fall_idx).tobytes(), np.asarray(fallen).tobytes(),
-               tuple(self._standing), self.config.priors_weights_sd, id(self.priors))
+               tuple(self._standing), self.config.priors_weights_sd)
         if self._mixture_fit is None or self._mixture_fit[0] != key:
             self._mixture_fit = (key, prior_mixture.fit_mixture(
                 self._prior, self.priors.generic_reward, idx, grs, fall_idx, fallen,
