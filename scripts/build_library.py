@@ -221,6 +221,52 @@ def _evaluated(out, spec):
                  for key in ('gaits', 'generic_reward', 'fallen'))
 
 
+def known_outcomes(archive, spec, out=None, gaits=DEFAULT_GAITS, shipped=None,
+                   cache_dir=None, restrict=False):
+    """What is known of ``spec``'s true outcomes, for an oracle: ``(generic_reward (M, 3),
+    fallen (M,), known (M,), source)``. A whole table where one is (the map's own damage
+    priors, ``shipped``, or an oracle table cached by the experiments), else the gaits the
+    library's build evaluated (the checkpoints in ``out``); ``restrict``: a whole table cut
+    to the gaits of the build's plan, to measure what an oracle loses with those alone.
+    None when nothing is known."""
+    from sim_bridge.damage import parse_damage
+    from sim_bridge.experiment_env import oracle_cache_path
+
+    m = len(archive)
+    canonical = parse_damage(spec).canonical()
+    whole = None
+    names = [parse_damage(n).canonical() for n in shipped.names] if shipped is not None else []
+    if canonical in names:
+        i = names.index(canonical)
+        whole = shipped.generic_reward[i][:, :3].astype(float), shipped.fallen[i].astype(bool)
+        source = 'whole table (shipped)'
+    else:
+        settings = archive.simulator_settings
+        path = oracle_cache_path(archive.params, spec, cache_dir, settings['dt'],
+                                 settings['gait_duration'], settings['solver_iterations'])
+        if path.is_file():
+            with np.load(path, allow_pickle=False) as npz:
+                gr, fallen = npz['generic_reward'], npz['fallen']
+            if gr.shape == (m, 3) and fallen.shape == (m,) and np.all(np.isfinite(gr)):
+                whole = gr.astype(float), fallen.astype(bool)
+                source = 'whole table (oracle cache)'
+    if whole is not None and not restrict:
+        return whole[0], whole[1], np.ones(m, bool), source
+    known = np.zeros(m, bool)
+    if whole is not None:
+        gr, fallen = whole
+        known[archive_subset(archive, gaits)] = True
+        source = f'{source} cut to the {int(known.sum())} gaits of the plan'
+    else:
+        done, done_gr, done_fallen = _evaluated(out or ROOT / 'mapbuild' / 'library', spec)
+        if not len(done):
+            return None
+        gr, fallen = np.zeros((m, 3)), np.zeros(m, bool)
+        gr[done], fallen[done], known[done] = done_gr, done_fallen, True
+        source = f'the {len(done)} gaits the library evaluated'
+    return gr, fallen, known, source
+
+
 def assemble(archive, out, gaits, library, shipped=None, only=None, partial=False):
     """Write the library: every condition's table, the gaits not evaluated inferred. A
     condition whose whole table ships (``shipped``, the map's own damage priors) is taken

@@ -55,7 +55,12 @@ FORESEEN = tuple((f'remove:{leg}', f'remove:{leg}', False)
 GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
 METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.sd': 1.0},
            'none': None, 'library-select': {'priors.weights.sd': 'none'},
-           'library': {'priors.weights.sd': 1.0}}
+           'library': {'priors.weights.sd': 1.0}, 'oracle': None, 'oracle-restricted': None}
+#: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
+#: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
+#: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
+#: those gaits, to measure what the oracle loses with them alone.
+ORACLE_METHODS = ('oracle', 'oracle-restricted')
 #: Methods that take their tables from ``--library``, each damage with its own condition and
 #: its near duplicates left out (:func:`leave_out`).
 LIBRARY_METHODS = ('library-select', 'library')
@@ -82,6 +87,26 @@ def oracle_medians():
                        tuple(float(v) for v in doc['parameters']['goal']))
                 out[key] = float(np.median(oracle['steps']))
     return out
+
+
+def library_cases(path=None):
+    """Every condition of the library file ``path`` (None: of the library's build plan) as
+    a damage nobody foresaw (measured with its own table and its near duplicates left out),
+    then the unforeseen cases of :data:`UNFORESEEN` that are no condition of it (between its
+    grid points, combinations)."""
+    from sela_ros.core.learning.damage_priors import load_damage_priors
+    from sim_bridge.damage import parse_damage
+
+    if path:
+        names = load_damage_priors(path).names
+    else:
+        sys.path.insert(0, str(ROOT / 'scripts'))
+        import build_library
+        names = build_library.conditions()
+    held = {parse_damage(n).canonical() for n in names}
+    return tuple((f'{n}/own-left-out', n, True) for n in names) + tuple(
+        c for c in UNFORESEEN if '/own-left-out' not in c[0]
+        and parse_damage(c[1]).canonical() not in held)
 
 
 def leave_out(priors, damage):
@@ -112,6 +137,21 @@ def leave_out(priors, damage):
     return priors, names
 
 
+def library_priors(whole, cases, scratch):
+    """``{case label: (path of its priors file, names left out)}``: a foreseen case keeps
+    the whole library; every other one is measured as if no condition of the library were
+    it or near it (:func:`leave_out`). The files are written to ``scratch``."""
+    out = {}
+    for n, case in enumerate(cases):
+        kept, names = (whole, []) if case in FORESEEN else leave_out(whole, case[1])
+        path = os.path.join(scratch, f'{n}.npz')
+        kept.save(path)
+        out[case[0]] = (path, names)
+        print(f'{case[0]}: {len(names)} of {len(whole)} library tables left out '
+              f'({", ".join(names) or "none"})', flush=True)
+    return out
+
+
 def run_one(priors_all, case, goal, method, seed, args, library=None):
     """One mission through the experiment runner (``sela-experiment hexapod``'s SELA
     replicate: the node's stepper, detector, planner and defaults), the observation noise
@@ -121,9 +161,11 @@ def run_one(priors_all, case, goal, method, seed, args, library=None):
     from sela_ros.experiments.hexapod import Job, run_method
 
     label, damage, leave_out_own = case
+    if method in ORACLE_METHODS:
+        return run_oracle(case, goal, method, seed, args)
     left_out, priors_value = [], 'auto'
     if method in LIBRARY_METHODS:
-        priors_value, left_out = library[damage]
+        priors_value, left_out = library[label]
         leave_out_own = False  # the library's file for this damage has it left out
     elif METHODS[method] is None:
         priors_value, leave_out_own = 'none', False
@@ -140,6 +182,65 @@ def run_one(priors_all, case, goal, method, seed, args, library=None):
             'falls': out['falls'], 'wall_seconds': round(out['wall_seconds'], 2),
             'behaviors': out['behaviors'],
             **({'left_out': left_out} if method in LIBRARY_METHODS else {})}
+
+
+_ORACLE_TABLES = {}
+
+
+def oracle_table(damage, restrict):
+    """``(generic_reward with FALLEN_GR where a gait falls or is not known, source)`` for
+    the oracle on ``damage``, or None when nothing of it is known (kept per process)."""
+    key = (damage, restrict)
+    if key not in _ORACLE_TABLES:
+        sys.path.insert(0, str(ROOT / 'scripts'))
+        import build_library
+
+        from sela_ros.core.learning import resolve_priors
+        from sela_ros.core.storage import default_archive_path, load_archive
+        from sela_ros.experiments.hexapod import FALLEN_GR
+
+        archive = load_archive(default_archive_path())
+        shipped = resolve_priors('auto', default_archive_path(), archive.params)
+        known = build_library.known_outcomes(archive, damage, shipped=shipped,
+                                             restrict=restrict)
+        if known is None:
+            _ORACLE_TABLES[key] = None
+        else:
+            gr, fallen, where, source = known
+            _ORACLE_TABLES[key] = (np.where((fallen | ~where)[:, None], FALLEN_GR, gr), source)
+    return _ORACLE_TABLES[key]
+
+
+def run_oracle(case, goal, method, seed, args):
+    """One oracle mission on the case's damage (None: nothing of the damage is known)."""
+    from sela_ros.core.storage import default_archive_path
+    from sela_ros.experiments.hexapod import Job, run_method
+
+    label, damage, _ = case
+    table = oracle_table(damage, method == 'oracle-restricted')
+    if table is None:
+        return None
+    extra = {} if args.lookahead is None else {'lookahead': args.lookahead}
+    job = Job('oracle', np.random.SeedSequence(seed), str(default_archive_path()), damage,
+              tuple(goal), noise_std=args.noise_std, max_steps=args.max_steps,
+              noise_seed=seed, oracle_gr=table[0], **extra)
+    out = run_method(job)
+    return {'case': label, 'damage': damage, 'foreseen': False, 'goal': list(goal),
+            'method': method, 'seed': seed, 'success': out['success'], 'steps': out['steps'],
+            'falls': out['falls'], 'wall_seconds': round(out['wall_seconds'], 2),
+            'behaviors': out['behaviors'], 'oracle_table': table[1]}
+
+
+def measured_oracle(runs):
+    """``{(canonical damage, goal): median steps}`` of the ``oracle`` runs in ``runs``."""
+    from sim_bridge.damage import parse_damage
+
+    steps = {}
+    for r in runs:
+        if r['method'] == 'oracle':
+            key = (parse_damage(r['damage']).canonical(), tuple(float(v) for v in r['goal']))
+            steps.setdefault(key, []).append(r['steps'])
+    return {key: float(np.median(v)) for key, v in steps.items()}
 
 
 def summarise(runs, oracle, methods):
@@ -255,8 +356,10 @@ def main(argv=None):
     parser.add_argument('--methods', default='select,mixture',
                         help=f'comma-separated, of {sorted(METHODS)} (default %(default)s)')
     parser.add_argument('--cases', default='all',
-                        help="'all', 'unforeseen', 'foreseen' or comma-free substrings of "
-                             'case names joined by ";"')
+                        help="'all', 'unforeseen', 'foreseen', 'library' (every condition of "
+                             "--library, or of the library's plan, as a damage nobody "
+                             "foresaw, then the unforeseen cases it does not hold) or case "
+                             'names joined by ";"')
     parser.add_argument('--goals', default=None,
                         help='goals X,Y separated by spaces (default: (2,2) (-2,1.5) '
                              '(1.5,-2) (2.5,0.5))')
@@ -281,13 +384,19 @@ def main(argv=None):
     unknown = set(methods) - set(METHODS)
     if unknown:
         parser.error(f'unknown methods {sorted(unknown)}; expected some of {sorted(METHODS)}')
-    if args.cases == 'all':
+    if args.cases == 'library':
+        cases = library_cases(args.library)
+    elif args.cases == 'all':
         cases = UNFORESEEN + FORESEEN
     elif args.cases in ('unforeseen', 'foreseen'):
         cases = UNFORESEEN if args.cases == 'unforeseen' else FORESEEN
     else:
         wanted = args.cases.split(';')
-        cases = tuple(c for c in UNFORESEEN + FORESEEN if any(w == c[0] for w in wanted))
+        known = UNFORESEEN + FORESEEN + library_cases(args.library)
+        by_label = {}
+        for c in known:
+            by_label.setdefault(c[0], c)
+        cases = tuple(by_label[w] for w in dict.fromkeys(wanted) if w in by_label)
         if not cases:
             parser.error(f'no case named {wanted}')
     goals = GOALS if not args.goals else tuple(
@@ -305,16 +414,7 @@ def main(argv=None):
             if not args.library:
                 parser.error(f'the methods {LIBRARY_METHODS} need --library')
             whole = resolve_priors(args.library, default_archive_path(), archive.params)
-            scratch = tempfile.mkdtemp(prefix='sela_library_')
-            for n, case in enumerate(cases):
-                # A foreseen damage keeps its table; every other one is measured as if no
-                # condition of the library were it or near it.
-                kept, names = leave_out(whole, case[1]) if case in UNFORESEEN else (whole, [])
-                path = os.path.join(scratch, f'{n}.npz')
-                kept.save(path)
-                library[case[1]] = (path, names)
-                print(f'{case[0]}: {len(names)} of {len(whole)} library tables left out '
-                      f'({", ".join(names) or "none"})', flush=True)
+            library = library_priors(whole, cases, tempfile.mkdtemp(prefix='sela_library_'))
         if args.out:
             Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         # Seed by seed: an interrupted comparison has every cell at the same count.
@@ -323,6 +423,10 @@ def main(argv=None):
         print(f'{len(todo)} runs to do ({len(done)} done already)', flush=True)
         for n, (case, goal, method, seed) in enumerate(todo, 1):
             run = run_one(priors, case, goal, method, seed, args, library)
+            if run is None:
+                print(f'[{n}/{len(todo)}] {case[0]}: no table of its outcomes for the oracle '
+                      '(its median comes from docs/results where there is one)', flush=True)
+                continue
             done.append(run)
             if args.out:
                 with open(args.out, 'a') as handle:
@@ -333,8 +437,8 @@ def main(argv=None):
     names = {c[0] for c in cases}
     runs = [r for r in done if r['case'] in names and r['method'] in methods
             and tuple(r['goal']) in goals]
-    oracle = oracle_medians()
-    rows = summarise(runs, oracle, methods)
+    oracle = {**oracle_medians(), **measured_oracle(done)}
+    rows = summarise(runs, oracle, [m for m in methods if m != 'oracle'] or methods)
     text = (totals(rows, runs, methods) + '\n\n' + paired(runs, methods) + '\n\n'
             + table(rows))
     print(text)

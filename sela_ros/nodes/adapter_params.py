@@ -31,8 +31,9 @@ PARAMETERS = (
          "one; auto = the archive's (1 for a 2-D map, 2 for the 8-D map)", low=1, high=2,
          kind='integer', word=AUTO, read_only=True),
     Spec('priors.tables', 'auto', "damage priors: tables of the archive's gaits on foreseen "
-         "damages (docs/archive.md); 'auto' = those shipped beside the archive if any, 'none' "
-         "= the intact map only (the paper), or a path (.npz from `make priors`)",
+         "damages (docs/archive.md); 'auto' = those shipped beside the archive if any, "
+         "'library' = the damage library beside it (90 conditions, docs/damage_library.md), "
+         "'none' = the intact map only (the paper), or a path (.npz from `make priors`)",
          read_only=True, renamed_from='priors'),
     Spec('priors.max_misfit', SELAConfig.priors_max_misfit, 'a damage prior is used on its '
          'own only while its median squared error over the steps seen is below this (units '

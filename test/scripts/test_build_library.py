@@ -87,6 +87,8 @@ class _Map:
         self._descriptors = rng.random((size, 2))
         self.generic_reward = np.column_stack([self._descriptors, np.zeros(size)]) * 0.3
         self.kernel_sigma = 0.3
+        self.simulator_settings = {'dt': 1.0 / 120.0, 'gait_duration': 3.0,
+                                   'solver_iterations': 30}
 
     def __len__(self):
         return len(self.params)
@@ -133,3 +135,50 @@ def test_assembly_takes_whole_shipped_tables_and_infers_the_rest(lib, tmp_path):
     rest = np.setdiff1d(np.arange(m), subset[:60])
     assert np.abs(inferred[rest] - truth[rest]).mean() < \
         0.5 * np.abs(archive.generic_reward[rest] - truth[rest]).mean()
+
+
+def test_the_oracle_knows_a_whole_table_where_there_is_one_else_the_gaits_evaluated(lib, tmp_path):
+    from sela_ros.core.learning import DamagePriors, params_checksum
+    from sim_bridge.experiment_env import oracle_cache_path
+
+    archive = _Map(np.random.default_rng(4))
+    m, settings = len(archive), archive.simulator_settings
+    whole = archive.generic_reward * 0.5
+    fallen = np.zeros(m, bool)
+    fallen[7] = True
+    shipped = DamagePriors(('remove:front_left',), whole[None], fallen[None],
+                           params_checksum(archive.params))
+    cache = tmp_path / 'oracle'
+    gr, falls, known, source = lib.known_outcomes(archive, 'remove:front_left', tmp_path, 100,
+                                                  shipped, cache)
+    assert known.all() and 'shipped' in source
+    np.testing.assert_allclose(gr, whole)
+    assert falls.tolist() == fallen.tolist()
+    # Cut to the plan's gaits: what an oracle would know from the library alone.
+    _, _, known, source = lib.known_outcomes(archive, 'remove:front_left', tmp_path, 100,
+                                             shipped, cache, restrict=True)
+    assert sorted(np.flatnonzero(known)) == sorted(lib.archive_subset(archive, 100))
+    assert 'cut to the 100 gaits' in source
+    # A table the experiments cached (sela-experiment's oracle) counts as whole.
+    pair = 'remove:front_left,remove:rear_right'
+    path = oracle_cache_path(archive.params, pair, cache, settings['dt'],
+                             settings['gait_duration'], settings['solver_iterations'])
+    path.parent.mkdir(parents=True)
+    np.savez(path, generic_reward=whole * 0.5, fallen=np.zeros(m, bool))
+    gr, _, known, source = lib.known_outcomes(archive, pair, tmp_path, 100, shipped, cache)
+    assert known.all() and 'oracle cache' in source
+    np.testing.assert_allclose(gr, whole * 0.5)
+    # Else the gaits the library's build evaluated, and nothing made up for the others.
+    blocked = 'block:rear_left.knee=0.4'
+    subset = lib.archive_subset(archive, 100)
+    folder = tmp_path / lib._slug(blocked)
+    folder.mkdir()
+    np.savez(folder / '000000.npz', gaits=subset[:30], generic_reward=whole[subset[:30]] * 2,
+             fallen=np.arange(30) == 3)
+    gr, falls, known, source = lib.known_outcomes(archive, blocked, tmp_path, 100, shipped,
+                                                  cache)
+    assert sorted(np.flatnonzero(known)) == sorted(subset[:30])
+    np.testing.assert_allclose(gr[subset[:30]], whole[subset[:30]] * 2)
+    assert np.flatnonzero(falls).tolist() == [subset[3]] and '30 gaits' in source
+    assert lib.known_outcomes(archive, 'remove:middle_left', tmp_path, 100, shipped,
+                              cache) is None

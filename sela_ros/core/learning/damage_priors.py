@@ -276,19 +276,27 @@ def load_damage_priors(path, params=None) -> DamagePriors:
     return priors
 
 
-def priors_path(archive_path) -> Path:
-    """Where an archive's damage priors are kept: ``<archive>_priors.npz`` beside it."""
+def priors_path(archive_path, library=False) -> Path:
+    """Where an archive's damage priors are kept: ``<archive>_priors.npz`` beside it;
+    ``library``: its damage library, ``<archive>_library.npz`` (``scripts/build_library.py``)."""
     archive_path = Path(archive_path)
-    return archive_path.with_name(f'{archive_path.stem}_priors.npz')
+    return archive_path.with_name(f"{archive_path.stem}_{'library' if library else 'priors'}.npz")
 
 
 def resolve_priors(value, archive_path, params) -> DamagePriors | None:
     """A ``priors`` parameter's tables: ``none`` (or '') none; ``auto`` those beside the
-    archive if there are (else none); anything else a path, which must exist and match."""
+    archive if there are (else none); ``library`` the damage library beside it (which must
+    be there); anything else a path, which must exist and match."""
     value = (value or '').strip()
     if value in ('', 'none'):
         return None
     if value == 'auto':
         path = priors_path(archive_path)
         return load_damage_priors(path, params) if path.is_file() else None
+    if value == 'library':
+        path = priors_path(archive_path, library=True)
+        if not path.is_file():
+            raise DamagePriorError(f'no damage library beside the archive ({path}): build it '
+                                   'with `make library` and assemble it (mapbuild/README.md)')
+        return load_damage_priors(path, params)
     return load_damage_priors(value, params)

@@ -230,6 +230,14 @@ def test_files_round_trip_and_bad_files_are_named(tmp_path):
         resolve_priors('auto', archive, params[:, ::-1].copy())
     with pytest.raises(DamagePriorError, match='no such file'):
         resolve_priors(str(tmp_path / 'missing.npz'), archive, params)
+    # The damage library: its own file beside the archive, said to be missing when it is.
+    library = priors_path(archive, library=True)
+    assert library.name == 'map_library.npz'
+    with pytest.raises(DamagePriorError, match='no damage library.*make library'):
+        resolve_priors('library', archive, params)
+    priors.without('remove:front_left').save(library)
+    assert resolve_priors('library', archive, params).names == ('remove:rear_left',)
+    assert resolve_priors('auto', archive, params).names == priors.names
     bad = tmp_path / 'bad.npz'
     bad.write_bytes(path.read_bytes()[:1000])
     with pytest.raises(DamagePriorError, match='unreadable'):

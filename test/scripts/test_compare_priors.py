@@ -1,0 +1,73 @@
+"""The leave-one-out comparison's bookkeeping: its cases, the tables each case is run with,
+the oracle's medians taken from its own runs."""
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sela_ros.core.learning import DamagePriors
+from sela_ros.core.learning.damage_priors import load_damage_priors
+from sim_bridge.damage import parse_damage
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _module(name):
+    spec = importlib.util.spec_from_file_location(name, ROOT / 'scripts' / f'{name}.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope='module')
+def compare():
+    return _module('compare_priors')
+
+
+def test_every_condition_of_the_plan_is_a_case_then_the_damages_between(compare):
+    plan = _module('build_library').conditions()
+    cases = compare.library_cases()
+    labels = [c[0] for c in cases]
+    assert len(set(labels)) == len(labels)
+    assert labels[:len(plan)] == [f'{n}/own-left-out' for n in plan]
+    # Each measured with its own table out of whatever priors the method uses.
+    assert all(own for _, _, own in cases[:len(plan)])
+    held = {parse_damage(n).canonical() for n in plan}
+    between = [c[1] for c in cases[len(plan):]]
+    assert 'shorten:front_left:0.5' in between
+    assert not {parse_damage(d).canonical() for d in between} & held
+
+
+def test_a_damage_foreseen_keeps_its_table_and_the_same_damage_unforeseen_does_not(
+        compare, tmp_path):
+    rng = np.random.default_rng(0)
+    names = ('remove:front_left', 'remove:rear_left', 'remove:front_left,remove:rear_left')
+    whole = DamagePriors(names, rng.normal(0, 0.3, (3, 50, 3)), np.zeros((3, 50), bool), 'x')
+    foreseen = next(c for c in compare.FORESEEN if c[1] == 'remove:front_left')
+    unforeseen = next(c for c in compare.UNFORESEEN if c[0] == 'remove:front_left/own-left-out')
+    library = compare.library_priors(whole, (unforeseen, foreseen), tmp_path)
+    assert library[foreseen[0]][1] == []
+    assert load_damage_priors(library[foreseen[0]][0]).names == names
+    assert library[unforeseen[0]][1] == ['remove:front_left']
+    assert load_damage_priors(library[unforeseen[0]][0]).names == names[1:]
+
+
+def test_a_near_duplicate_of_the_damage_is_left_out_with_it(compare):
+    rng = np.random.default_rng(1)
+    gr = rng.normal(0, 0.3, (3, 50, 3))
+    gr[2] = gr[0] + 0.01  # within the chaining error of the first table
+    names = ('shorten:front_left:0.3', 'remove:rear_left', 'remove:front_left')
+    kept, out = compare.leave_out(DamagePriors(names, gr, np.zeros((3, 50), bool), 'x'),
+                                  'shorten:front_left:0.3')
+    assert out == ['shorten:front_left:0.3', 'remove:front_left']
+    assert kept.names == ('remove:rear_left',)
+
+
+def test_the_oracles_medians_come_from_its_runs(compare):
+    runs = [{'method': 'oracle', 'damage': 'remove:rear_left,remove:front_left',
+             'goal': [2, 2], 'steps': s} for s in (6, 8, 9)]
+    runs.append({'method': 'library', 'damage': 'remove:front_left,remove:rear_left',
+                 'goal': [2, 2], 'steps': 30})
+    assert compare.measured_oracle(runs) == {
+        (parse_damage('remove:front_left,remove:rear_left').canonical(), (2.0, 2.0)): 8.0}
