@@ -280,6 +280,121 @@ def summarise(runs, oracle, methods):
     return rows
 
 
+def kind_of(damage):
+    """The group a damage is reported in: its kind, single legs apart from pairs."""
+    from sim_bridge.damage import parse_damage
+
+    spec = parse_damage(damage)
+    kinds = sorted({part.split(':')[0] for part in damage.split(',')})
+    if len(kinds) > 1:
+        return 'combined kinds'
+    legs = len(spec.removed) + len(spec.shortened) + len(spec.blocked) + len(spec.weakened)
+    return f"{kinds[0]}{', two legs' if legs > 1 else ''}"
+
+
+#: The bar per condition (docs/damage_library.md): at every goal, this share of the runs
+#: home, median steps at most this many times the oracle's (pairs of legs removed: the
+#: second), median falls per run at most this.
+BAR_SUCCESS, BAR_RATIO, BAR_RATIO_PAIR, BAR_FALLS = 0.95, 1.3, 1.5, 1.0
+
+
+def cells(runs, oracle, method):
+    """Per case and goal of ``method``: ``(case, damage, goal, runs, home, median steps,
+    oracle median or None, median falls)``."""
+    from sim_bridge.damage import parse_damage
+
+    out = {}
+    for r in runs:
+        if r['method'] == method:
+            out.setdefault((r['case'], r['damage'], tuple(r['goal'])), []).append(r)
+    return [(case, damage, goal, len(rs), sum(r['success'] for r in rs),
+             statistics.median(r['steps'] for r in rs),
+             oracle.get((parse_damage(damage).canonical(), goal)),
+             statistics.median(r['falls'] for r in rs))
+            for (case, damage, goal), rs in out.items()]
+
+
+def bar_table(runs, oracle, methods):
+    """Per kind of damage and method: how many conditions meet the bar at every goal, and
+    the median and worst of their goals' ratios to the oracle."""
+    lines = ['| kind | method | conditions | runs | home | meet the bar | success >= 95 % '
+             '| ratio <= bar | falls <= 1 | median ratio | worst ratio | falls |',
+             '|' + '---|' * 12]
+    for method in methods:
+        per_case = {}
+        for cell in cells(runs, oracle, method):
+            per_case.setdefault(cell[0], []).append(cell)
+        kinds = {}
+        for cs in per_case.values():
+            kinds.setdefault(kind_of(cs[0][1]), []).append(cs)
+        for kind, conditions in sorted(kinds.items()):
+            bar = BAR_RATIO_PAIR if kind == 'remove, two legs' else BAR_RATIO
+            ok = [all(c[4] >= BAR_SUCCESS * c[3] for c in cs) for cs in conditions]
+            # Only the conditions with an oracle at every goal are judged on steps.
+            timed = [all(c[6] for c in cs) for cs in conditions]
+            fast = [t and all(c[5] <= bar * c[6] for c in cs)
+                    for t, cs in zip(timed, conditions)]
+            calm = [all(c[7] <= BAR_FALLS for c in cs) for cs in conditions]
+            both = [a and b and c for a, b, c in zip(ok, fast, calm)]
+            ratios = [c[5] / c[6] for cs in conditions for c in cs if c[6]]
+            timed = sum(timed)
+            mine = [r for r in runs if r['method'] == method
+                    and kind_of(r['damage']) == kind]
+            lines.append(
+                f"| {kind} | {method} | {len(conditions)} | {len(mine)} "
+                f"| {sum(r['success'] for r in mine)} | {sum(both)} of {timed} "
+                f"| {sum(ok)} | {sum(fast)} of {timed} (<= {bar:g}x) | {sum(calm)} "
+                f"| {_fmt(statistics.median(ratios) if ratios else None)}x "
+                f"| {_fmt(max(ratios) if ratios else None)}x "
+                f"| {sum(r['falls'] for r in mine)} |")
+    return '\n'.join(lines)
+
+
+def figure(runs, oracle, methods, path):
+    """Every condition's goals' ratios to the oracle, per method, grouped by kind."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    cases = sorted({r['case'] for r in runs if r['method'] in methods},
+                   key=lambda c: (kind_of(c.split('/')[0]), c))
+    fig, ax = plt.subplots(figsize=(12, 4.2), dpi=100)
+    colours = ('#1b9e77', '#d95f02', '#7570b3', '#e7298a')
+    for m, method in enumerate(methods):
+        by_case = {}
+        for c in cells(runs, oracle, method):
+            if c[6]:
+                by_case.setdefault(c[0], []).append(c[5] / c[6])
+        xs = [i + 0.25 * (m - (len(methods) - 1) / 2) for i, c in enumerate(cases)
+              if c in by_case]
+        ys = [statistics.median(by_case[c]) for c in cases if c in by_case]
+        lo = [min(by_case[c]) for c in cases if c in by_case]
+        hi = [max(by_case[c]) for c in cases if c in by_case]
+        ax.vlines(xs, lo, hi, colors=colours[m % 4], linewidth=1)
+        ax.plot(xs, ys, 'o', ms=3, color=colours[m % 4], label=method)
+    ax.axhline(BAR_RATIO, color='grey', linestyle='--', linewidth=0.8)
+    ax.axhline(1.0, color='black', linewidth=0.6)
+    edges, last = [], None
+    for i, c in enumerate(cases):
+        kind = kind_of(c.split('/')[0])
+        if kind != last:
+            edges.append((i, kind))
+            last = kind
+    for i, kind in edges:
+        ax.axvline(i - 0.5, color='lightgrey', linewidth=0.6)
+        ax.text(i - 0.4, 0.05, kind, rotation=90, fontsize=7,
+                transform=ax.get_xaxis_transform(), va='bottom')
+    ax.set_xticks([])
+    ax.set_xlabel(f'{len(cases)} damages, each with its own table and its near duplicates '
+                  'left out (grouped by kind)')
+    ax.set_ylabel("median steps / oracle's\n(dot: median of 3 goals; line: their range)")
+    ax.legend(loc='upper right', fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def _fmt(v, spec='{:.2f}'):
     return '-' if v is None else spec.format(v)
 
@@ -370,6 +485,8 @@ def main(argv=None):
                         help="waypoint distance (m; default: the node's)")
     parser.add_argument('--out', default=None, help='JSON lines of every run (resumed)')
     parser.add_argument('--markdown', default=None, help='write the tables here')
+    parser.add_argument('--figure', default=None,
+                        help="draw every condition's ratios to the oracle here (PNG)")
     parser.add_argument('--library', default=None,
                         help='a damage library (scripts/build_library.py --assemble) for the '
                              'methods ' + ', '.join(LIBRARY_METHODS))
@@ -439,8 +556,11 @@ def main(argv=None):
             and tuple(r['goal']) in goals]
     oracle = {**oracle_medians(), **measured_oracle(done)}
     rows = summarise(runs, oracle, [m for m in methods if m != 'oracle'] or methods)
-    text = (totals(rows, runs, methods) + '\n\n' + paired(runs, methods) + '\n\n'
-            + table(rows))
+    shown = [m for m in methods if m not in ORACLE_METHODS] or methods
+    text = (bar_table(runs, oracle, shown) + '\n\n' + totals(rows, runs, methods) + '\n\n'
+            + paired(runs, methods) + '\n\n' + table(rows))
+    if args.figure:
+        figure(runs, oracle, shown, args.figure)
     print(text)
     if args.markdown:
         Path(args.markdown).write_text(text + '\n')
