@@ -79,6 +79,7 @@ priors: venv
 # core-hours; resumes from the checkpoints in mapbuild/library.
 library: venv
 	nice -n 15 $(PY) scripts/build_library.py --workers $(WORKERS)
+	nice -n 15 $(PY) scripts/build_library.py --assemble
 
 lint: venv
 	$(VENV)/bin/ruff check .

@@ -11,13 +11,13 @@ toward its waypoint: docs/priors_combination.md); the other gaits inferred by a 
 same descriptors (prior mean: the intact map; what is learnt: each condition's deviation
 from it, and its falls). The single legs removed are not built: their whole tables ship
 beside the map (``make priors``) and the library takes them from there. The result is a
-damage-priors file (``DamagePriors``) that SELA mixes (``sela_ros.core.learning.prior_mixture``) or
-chooses from, as ``priors.tables: <path>``.
+damage-priors file (``DamagePriors``) beside the map, which SELA mixes
+(``sela_ros.core.learning.prior_mixture``) or chooses from, as ``priors.tables: library``
+(docs/damage_library.md).
 
     .venv/bin/python scripts/build_library.py --plan              # conditions, cost, size
     nice -n 15 .venv/bin/python scripts/build_library.py --workers 2
-    .venv/bin/python scripts/build_library.py --assemble \\
-        --library sela_ros/data/hexapod_archive_library.npz
+    .venv/bin/python scripts/build_library.py --assemble          # -> <map>_library.npz
 
 Resumable after any interruption, on this machine or another: every ``--chunk`` gaits of a
 condition are written atomically to ``--out`` (``<condition>/<first gait>.npz``) and a run
@@ -321,7 +321,7 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
 
 
 def main(argv=None):
-    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.learning import priors_path, resolve_priors
     from sela_ros.core.storage import load_archive, resolve_archive_path
 
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -342,7 +342,9 @@ def main(argv=None):
     parser.add_argument('--plan', action='store_true', help='print the plan, build nothing')
     parser.add_argument('--assemble', action='store_true',
                         help='infer the gaits not evaluated and write --library')
-    parser.add_argument('--library', default=None, help='the assembled damage-priors file')
+    parser.add_argument('--library', default=None,
+                        help="the assembled damage-priors file (default: beside the archive, "
+                             "<archive>_library.npz: what priors.tables: library reads)")
     parser.add_argument('--check-inference', action='store_true',
                         help='infer the shipped tables from the gaits of the plan and print '
                              'the error on the others')
@@ -376,9 +378,8 @@ def main(argv=None):
         check_inference(archive, shipped, args.gaits)
         return
     if args.assemble:
-        if not args.library:
-            parser.error('--assemble needs --library')
-        assemble(archive, args.out, args.gaits, args.library, shipped, only, args.partial)
+        library = args.library or priors_path(path, library=True)
+        assemble(archive, args.out, args.gaits, library, shipped, only, args.partial)
         return
     build(archive, args.out, args.gaits, args.chunk, args.workers, only, skip)
 
