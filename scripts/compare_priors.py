@@ -468,6 +468,9 @@ def paired(runs, methods):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--seeds', type=int, default=3, help='runs per cell (seeds 0..N-1)')
+    parser.add_argument('--first-seed', type=int, default=0,
+                        help='start at this seed (to share the seeds among processes, each '
+                             'with its own --out)')
     parser.add_argument('--methods', default='select,mixture',
                         help=f'comma-separated, of {sorted(METHODS)} (default %(default)s)')
     parser.add_argument('--cases', default='all',
@@ -535,7 +538,8 @@ def main(argv=None):
         if args.out:
             Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         # Seed by seed: an interrupted comparison has every cell at the same count.
-        todo = [(c, g, m, s) for s in range(args.seeds) for c in cases for g in goals
+        todo = [(c, g, m, s) for s in range(args.first_seed, args.seeds) for c in cases
+                for g in goals
                 for m in methods if (c[0], g, m, s) not in key]
         print(f'{len(todo)} runs to do ({len(done)} done already)', flush=True)
         for n, (case, goal, method, seed) in enumerate(todo, 1):
