@@ -30,6 +30,8 @@ import os
 import statistics
 import sys
 import tempfile
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import as_completed as futures_completed
 from pathlib import Path
 
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
@@ -152,7 +154,7 @@ def library_priors(whole, cases, scratch):
     return out
 
 
-def run_one(priors_all, case, goal, method, seed, args, library=None):
+def run_one(shipped, case, goal, method, seed, args, library=None):
     """One mission through the experiment runner (``sela-experiment hexapod``'s SELA
     replicate: the node's stepper, detector, planner and defaults), the observation noise
     seeded as the ``sim_bridge`` node's ``seed``; the method sets the damage priors and
@@ -176,7 +178,7 @@ def run_one(priors_all, case, goal, method, seed, args, library=None):
               priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
               weights_sd=settings.get('priors.weights.sd'), **extra)
     out = run_method(job)
-    foreseen = priors_value == 'auto' and not leave_out_own and damage in priors_all.names
+    foreseen = priors_value == 'auto' and not leave_out_own and damage in shipped
     return {'case': label, 'damage': damage, 'foreseen': foreseen, 'goal': list(goal),
             'method': method, 'seed': seed, 'success': out['success'], 'steps': out['steps'],
             'falls': out['falls'], 'wall_seconds': round(out['wall_seconds'], 2),
@@ -465,9 +467,41 @@ def paired(runs, methods):
     return '\n'.join(lines)
 
 
+class _InProcess:
+    """The executor interface run in this process, one run at a time, lazily (each run
+    when its result is asked for, so that progress is printed as runs finish)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args):
+        return _Deferred(fn, args)
+
+
+class _Deferred:
+    def __init__(self, fn, args):
+        self._call = (fn, args)
+
+    def result(self):
+        fn, args = self._call
+        return fn(*args)
+
+
+def as_completed(futures):
+    """:func:`concurrent.futures.as_completed`, and the in-process runs in order."""
+    if futures and isinstance(futures[0], _Deferred):
+        return iter(futures)
+    return futures_completed(futures)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--seeds', type=int, default=3, help='runs per cell (seeds 0..N-1)')
+    parser.add_argument('--workers', type=int, default=1,
+                        help='runs at once, one process each (default %(default)s)')
     parser.add_argument('--first-seed', type=int, default=0,
                         help='start at this seed (to share the seeds among processes, each '
                              'with its own --out)')
@@ -542,19 +576,25 @@ def main(argv=None):
                 for g in goals
                 for m in methods if (c[0], g, m, s) not in key]
         print(f'{len(todo)} runs to do ({len(done)} done already)', flush=True)
-        for n, (case, goal, method, seed) in enumerate(todo, 1):
-            run = run_one(priors, case, goal, method, seed, args, library)
-            if run is None:
-                print(f'[{n}/{len(todo)}] {case[0]}: no table of its outcomes for the oracle '
-                      '(its median comes from docs/results where there is one)', flush=True)
-                continue
-            done.append(run)
-            if args.out:
-                with open(args.out, 'a') as handle:
-                    handle.write(json.dumps(run) + '\n')
-            print(f"[{n}/{len(todo)}] {case[0]} {goal} {method} seed {seed}: "
-                  f"{'ok' if run['success'] else 'FAILED'} {run['steps']} steps, "
-                  f"{run['falls']} falls, {run['wall_seconds']} s", flush=True)
+        shipped = tuple(priors.names) if priors is not None else ()
+        with ProcessPoolExecutor(max_workers=args.workers) if args.workers > 1 \
+                else _InProcess() as pool:
+            futures = [pool.submit(run_one, shipped, case, goal, method, seed, args, library)
+                       for case, goal, method, seed in todo]
+            for n, future in enumerate(as_completed(futures), 1):
+                run = future.result()
+                if run is None:
+                    print(f'[{n}/{len(todo)}] no table of its outcomes for the oracle (its '
+                          'median comes from docs/results where there is one)', flush=True)
+                    continue
+                done.append(run)
+                if args.out:
+                    with open(args.out, 'a') as handle:
+                        handle.write(json.dumps(run) + '\n')
+                print(f"[{n}/{len(todo)}] {run['case']} {tuple(run['goal'])} {run['method']} "
+                      f"seed {run['seed']}: {'ok' if run['success'] else 'FAILED'} "
+                      f"{run['steps']} steps, {run['falls']} falls, {run['wall_seconds']} s",
+                      flush=True)
     names = {c[0] for c in cases}
     runs = [r for r in done if r['case'] in names and r['method'] in methods
             and tuple(r['goal']) in goals]
