@@ -70,7 +70,7 @@ LIBRARY_METHODS = ('library-select', 'library')
 #: the gaits that stand in both, in units of the chaining error (RESIDUAL_SCALE).
 NEAR_DUPLICATE = 1.0
 CAMPAIGNS = ('campaign_priors', 'campaign_unforeseen', 'campaign_oracle_one_side',
-             'campaign_oracle_between')
+             'campaign_oracle_between', 'campaign_oracle_combined')
 
 
 def oracle_medians():
