@@ -142,6 +142,8 @@ def main():
             print(f'  the same with {label}, {"mixed" if mixed else "one table"} (prior in '
                   f'use: {prior}): median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms '
                   '(target < 20 ms)')
+    if args.toy_replicates < 1:
+        return  # no toy experiment asked for
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
         subprocess.run([sys.executable, '-m', 'sela_ros.experiments.cli', 'toy',
