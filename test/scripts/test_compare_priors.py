@@ -66,8 +66,13 @@ def test_a_near_duplicate_of_the_damage_is_left_out_with_it(compare):
 
 def test_the_oracles_medians_come_from_its_runs(compare):
     runs = [{'method': 'oracle', 'damage': 'remove:rear_left,remove:front_left',
-             'goal': [2, 2], 'steps': s} for s in (6, 8, 9)]
+             'goal': [2, 2], 'steps': s, 'oracle_table': 'whole table (shipped)'}
+            for s in (6, 8, 9)]
+    runs.append({'method': 'oracle', 'damage': 'remove:front_left', 'goal': [2, 2],
+                 'steps': 7, 'oracle_table': 'the 4000 gaits the library evaluated'})
     runs.append({'method': 'library', 'damage': 'remove:front_left,remove:rear_left',
                  'goal': [2, 2], 'steps': 30})
-    assert compare.measured_oracle(runs) == {
-        (parse_damage('remove:front_left,remove:rear_left').canonical(), (2.0, 2.0)): 8.0}
+    pair = (parse_damage('remove:front_left,remove:rear_left').canonical(), (2.0, 2.0))
+    assert compare.measured_oracle(runs, whole=True) == {pair: 8.0}
+    assert compare.measured_oracle(runs, whole=False) == {('remove:front_left', (2.0, 2.0)): 7.0}
+    assert len(compare.measured_oracle(runs)) == 2
