@@ -27,6 +27,9 @@ from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 
 STATUSES_KEPT = 100_000  # the latest diagnostics statuses, for errors() and heartbeats
+#: Seconds a goal waits for the adapter's answer before it is sent again (the adapter
+#: answers at once; only a request lost in discovery goes unanswered).
+ANSWER_WAIT = 10.0
 
 
 @dataclass
@@ -195,13 +198,29 @@ class MissionClient:
         poses = [conv.pose_stamped(g, frame_id=frame_id) for g in np.asarray(goals, float)]
         self._send(ifc.FOLLOW_WAYPOINTS, ifc.FOLLOW_WAYPOINTS.type.Goal(poses=poses), timeout)
 
+    def _send_goal(self, action, goal, timeout):
+        """Send the goal; ask again when it is not answered within :data:`ANSWER_WAIT`: a
+        server that is ready to this client may not hear it yet (a relaunched adapter, or
+        one whose last run DDS has not forgotten), and the request is then lost. An answer
+        lost on its way back is asked again too: the second goal preempts the first."""
+        deadline = time.monotonic() + timeout
+        while True:
+            sent = self._action(action).send_goal_async(goal)
+            wait = min(ANSWER_WAIT, max(0.0, deadline - time.monotonic()))
+            try:
+                self.spin_until(sent.done, wait, f'the answer to the {action.name} goal')
+                return sent.result()
+            except TimeoutError:
+                if time.monotonic() >= deadline:
+                    raise TimeoutError(f'timed out after {timeout} s waiting for the answer to '
+                                       f'the {action.name} goal') from None
+                sent.cancel()
+
     def _send(self, action, goal, timeout):
         self.wait_until_ready(timeout)
         self.result = self.action_result = self._mission = self._goal_id = None
         self.goals_reached = []
-        sent = self._action(action).send_goal_async(goal)
-        self.spin_until(sent.done, timeout, f'the answer to the {action.name} goal')
-        handle = sent.result()
+        handle = self._send_goal(action, goal, timeout)
         if not handle.accepted:
             raise RuntimeError(f'the adapter rejected the {action.name} goal (no archive '
                                'loaded?)')

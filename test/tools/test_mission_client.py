@@ -1,4 +1,5 @@
 """MissionClient's reading of the adapter's statuses, without DDS (a stand-in node)."""
+import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from sela_ros.nodes import conversions as conv
@@ -54,3 +55,41 @@ def test_statuses_heard_before_the_goal_was_answered_are_read_again():
     for status in list(client.statuses):
         client._read(status, again=True)
     assert client._mission == '7' and len(client.goals_reached) == 1
+
+
+class _LossyActionClient:
+    """An action client whose first ``lost`` goal requests never get an answer."""
+
+    def __init__(self, lost):
+        from rclpy.task import Future
+
+        self._future = Future
+        self.lost = lost
+        self.sent = []
+
+    def send_goal_async(self, goal):
+        future = self._future()
+        self.sent.append(future)
+        if len(self.sent) > self.lost:
+            future.set_result('the answer')
+        return future
+
+
+def test_a_goal_whose_request_is_lost_is_sent_again_until_answered(monkeypatch):
+    import sela_ros.tools.mission_client as mc
+
+    clock = [0.0]
+    monkeypatch.setattr(mc.time, 'monotonic', lambda: clock[0])
+
+    def spin_once(timeout):
+        clock[0] += timeout  # time passes only while the client waits
+
+    client = MissionClient(_Node(), spin_once)
+    lossy = _LossyActionClient(lost=2)
+    client._actions[ifc.NAVIGATE_TO_POSE.name] = lossy
+    assert client._send_goal(ifc.NAVIGATE_TO_POSE, 'goal', timeout=60) == 'the answer'
+    assert len(lossy.sent) == 3 and all(f.cancelled() for f in lossy.sent[:2])
+    # Never answered: the caller's timeout, once.
+    client._actions[ifc.NAVIGATE_TO_POSE.name] = _LossyActionClient(lost=100)
+    with pytest.raises(TimeoutError, match='after 25 s waiting for the answer'):
+        client._send_goal(ifc.NAVIGATE_TO_POSE, 'goal', timeout=25)
