@@ -30,8 +30,7 @@ import os
 import statistics
 import sys
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures import as_completed as futures_completed
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
@@ -469,34 +468,18 @@ def paired(runs, methods):
     return '\n'.join(lines)
 
 
-class _InProcess:
-    """The executor interface run in this process, one run at a time, lazily (each run
-    when its result is asked for, so that progress is printed as runs finish)."""
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def submit(self, fn, *args):
-        return _Deferred(fn, args)
-
-
-class _Deferred:
-    def __init__(self, fn, args):
-        self._call = (fn, args)
-
-    def result(self):
-        fn, args = self._call
-        return fn(*args)
-
-
-def as_completed(futures):
-    """:func:`concurrent.futures.as_completed`, and the in-process runs in order."""
-    if futures and isinstance(futures[0], _Deferred):
-        return iter(futures)
-    return futures_completed(futures)
+def _runs(todo, shipped, args, library):
+    """Each run's record as it finishes: here, one after another, or on a process pool of
+    ``args.workers``."""
+    if args.workers <= 1:
+        for case, goal, method, seed in todo:
+            yield run_one(shipped, case, goal, method, seed, args, library)
+        return
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        futures = [pool.submit(run_one, shipped, case, goal, method, seed, args, library)
+                   for case, goal, method, seed in todo]
+        for future in as_completed(futures):
+            yield future.result()
 
 
 def main(argv=None):
@@ -579,24 +562,19 @@ def main(argv=None):
                 for m in methods if (c[0], g, m, s) not in key]
         print(f'{len(todo)} runs to do ({len(done)} done already)', flush=True)
         shipped = tuple(priors.names) if priors is not None else ()
-        with ProcessPoolExecutor(max_workers=args.workers) if args.workers > 1 \
-                else _InProcess() as pool:
-            futures = [pool.submit(run_one, shipped, case, goal, method, seed, args, library)
-                       for case, goal, method, seed in todo]
-            for n, future in enumerate(as_completed(futures), 1):
-                run = future.result()
-                if run is None:
-                    print(f'[{n}/{len(todo)}] no table of its outcomes for the oracle (its '
-                          'median comes from docs/results where there is one)', flush=True)
-                    continue
-                done.append(run)
-                if args.out:
-                    with open(args.out, 'a') as handle:
-                        handle.write(json.dumps(run) + '\n')
-                print(f"[{n}/{len(todo)}] {run['case']} {tuple(run['goal'])} {run['method']} "
-                      f"seed {run['seed']}: {'ok' if run['success'] else 'FAILED'} "
-                      f"{run['steps']} steps, {run['falls']} falls, {run['wall_seconds']} s",
-                      flush=True)
+        for n, run in enumerate(_runs(todo, shipped, args, library), 1):
+            if run is None:
+                print(f'[{n}/{len(todo)}] no table of its outcomes for the oracle (its '
+                      'median comes from docs/results where there is one)', flush=True)
+                continue
+            done.append(run)
+            if args.out:
+                with open(args.out, 'a') as handle:
+                    handle.write(json.dumps(run) + '\n')
+            print(f"[{n}/{len(todo)}] {run['case']} {tuple(run['goal'])} {run['method']} "
+                  f"seed {run['seed']}: {'ok' if run['success'] else 'FAILED'} "
+                  f"{run['steps']} steps, {run['falls']} falls, {run['wall_seconds']} s",
+                  flush=True)
     names = {c[0] for c in cases}
     runs = [r for r in done if r['case'] in names and r['method'] in methods
             and tuple(r['goal']) in goals]
