@@ -32,6 +32,7 @@ import sys
 import tempfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+from typing import NamedTuple
 
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
@@ -301,19 +302,30 @@ def kind_of(damage):
 BAR_SUCCESS, BAR_RATIO, BAR_RATIO_PAIR, BAR_FALLS = 0.95, 1.3, 1.5, 1.0
 
 
+class Cell(NamedTuple):
+    """One case and goal of one method."""
+    case: str
+    damage: str
+    goal: tuple
+    runs: int
+    home: int
+    median_steps: float
+    oracle: float | None  # the oracle's median steps (None: no oracle)
+    median_falls: float
+
+
 def cells(runs, oracle, method):
-    """Per case and goal of ``method``: ``(case, damage, goal, runs, home, median steps,
-    oracle median or None, median falls)``."""
+    """Per case and goal of ``method``: its :class:`Cell`."""
     from sim_bridge.damage import parse_damage
 
     out = {}
     for r in runs:
         if r['method'] == method:
             out.setdefault((r['case'], r['damage'], tuple(r['goal'])), []).append(r)
-    return [(case, damage, goal, len(rs), sum(r['success'] for r in rs),
-             statistics.median(r['steps'] for r in rs),
-             oracle.get((parse_damage(damage).canonical(), goal)),
-             statistics.median(r['falls'] for r in rs))
+    return [Cell(case, damage, goal, len(rs), sum(r['success'] for r in rs),
+                 statistics.median(r['steps'] for r in rs),
+                 oracle.get((parse_damage(damage).canonical(), goal)),
+                 statistics.median(r['falls'] for r in rs))
             for (case, damage, goal), rs in out.items()]
 
 
@@ -326,27 +338,26 @@ def bar_table(runs, oracle, methods):
     for method in methods:
         per_case = {}
         for cell in cells(runs, oracle, method):
-            per_case.setdefault(cell[0], []).append(cell)
+            per_case.setdefault(cell.case, []).append(cell)
         kinds = {}
         for cs in per_case.values():
-            kinds.setdefault(kind_of(cs[0][1]), []).append(cs)
+            kinds.setdefault(kind_of(cs[0].damage), []).append(cs)
         for kind, conditions in sorted(kinds.items()):
             bar = BAR_RATIO_PAIR if kind == 'remove, two legs' else BAR_RATIO
-            ok = [all(c[4] >= BAR_SUCCESS * c[3] for c in cs) for cs in conditions]
+            ok = [all(c.home >= BAR_SUCCESS * c.runs for c in cs) for cs in conditions]
             # Only the conditions with an oracle at every goal are judged on steps.
-            timed = [all(c[6] for c in cs) for cs in conditions]
-            fast = [t and all(c[5] <= bar * c[6] for c in cs)
+            timed = [all(c.oracle for c in cs) for cs in conditions]
+            fast = [t and all(c.median_steps <= bar * c.oracle for c in cs)
                     for t, cs in zip(timed, conditions)]
-            calm = [all(c[7] <= BAR_FALLS for c in cs) for cs in conditions]
+            calm = [all(c.median_falls <= BAR_FALLS for c in cs) for cs in conditions]
             both = [a and b and c for a, b, c in zip(ok, fast, calm)]
-            ratios = [c[5] / c[6] for cs in conditions for c in cs if c[6]]
-            timed = sum(timed)
+            ratios = [c.median_steps / c.oracle for cs in conditions for c in cs if c.oracle]
             mine = [r for r in runs if r['method'] == method
                     and kind_of(r['damage']) == kind]
             lines.append(
                 f"| {kind} | {method} | {len(conditions)} | {len(mine)} "
-                f"| {sum(r['success'] for r in mine)} | {sum(both)} of {timed} "
-                f"| {sum(ok)} | {sum(fast)} of {timed} (<= {bar:g}x) | {sum(calm)} "
+                f"| {sum(r['success'] for r in mine)} | {sum(both)} of {sum(timed)} "
+                f"| {sum(ok)} | {sum(fast)} of {sum(timed)} (<= {bar:g}x) | {sum(calm)} "
                 f"| {_fmt(statistics.median(ratios) if ratios else None)}x "
                 f"| {_fmt(max(ratios) if ratios else None)}x "
                 f"| {sum(r['falls'] for r in mine)} |")
@@ -367,8 +378,8 @@ def figure(runs, oracle, methods, path):
     for m, method in enumerate(methods):
         by_case = {}
         for c in cells(runs, oracle, method):
-            if c[6]:
-                by_case.setdefault(c[0], []).append(c[5] / c[6])
+            if c.oracle:
+                by_case.setdefault(c.case, []).append(c.median_steps / c.oracle)
         xs = [i + 0.25 * (m - (len(methods) - 1) / 2) for i, c in enumerate(cases)
               if c in by_case]
         ys = [statistics.median(by_case[c]) for c in cases if c in by_case]
