@@ -230,11 +230,10 @@ def known_outcomes(archive, spec, out=None, gaits=DEFAULT_GAITS, shipped=None,
     to the gaits of the build's plan, to measure what an oracle loses with those alone.
     None when nothing is known."""
     from sim_bridge.damage import parse_damage
-    from sim_bridge.experiment_env import oracle_cache_path
+    from sim_bridge.experiment_env import cached_oracle_table
 
     m = len(archive)
     canonical = parse_damage(spec).canonical()
-    whole = None
     names = [parse_damage(n).canonical() for n in shipped.names] if shipped is not None else []
     if canonical in names:
         i = names.index(canonical)
@@ -242,14 +241,9 @@ def known_outcomes(archive, spec, out=None, gaits=DEFAULT_GAITS, shipped=None,
         source = 'whole table (shipped)'
     else:
         settings = archive.simulator_settings
-        path = oracle_cache_path(archive.params, spec, cache_dir, settings['dt'],
-                                 settings['gait_duration'], settings['solver_iterations'])
-        if path.is_file():
-            with np.load(path, allow_pickle=False) as npz:
-                gr, fallen = npz['generic_reward'], npz['fallen']
-            if gr.shape == (m, 3) and fallen.shape == (m,) and np.all(np.isfinite(gr)):
-                whole = gr.astype(float), fallen.astype(bool)
-                source = 'whole table (oracle cache)'
+        whole = cached_oracle_table(archive.params, spec, cache_dir, settings['dt'],
+                                    settings['gait_duration'], settings['solver_iterations'])
+        source = 'whole table (oracle cache)'
     if whole is not None and not restrict:
         return whole[0], whole[1], np.ones(m, bool), source
     known = np.zeros(m, bool)

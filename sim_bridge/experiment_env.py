@@ -168,6 +168,24 @@ def compute_oracle_table(params, damage, workers=1, dt=1.0 / 240.0, gait_duratio
     return table[:, :3], table[:, 3].astype(bool)
 
 
+def cached_oracle_table(params, damage, cache_dir=None, dt=1.0 / 240.0, gait_duration=3.0,
+                        solver_iterations=50):
+    """The oracle table of :func:`oracle_table` if it is cached, whole and sound; else None
+    (nothing is computed)."""
+    path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration, solver_iterations)
+    n = len(params)
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            gr, fallen = npz['generic_reward'], npz['fallen']
+    except Exception:  # corrupt or truncated: as if absent
+        return None
+    if gr.shape == (n, 3) and fallen.shape == (n,) and np.all(np.isfinite(gr)):
+        return gr.astype(float), fallen.astype(bool)
+    return None
+
+
 def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
                  gait_duration=3.0, solver_iterations=50):
     """:func:`compute_oracle_table`, cached on disk (atomic write; a bad file is redone).
@@ -175,16 +193,11 @@ def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
     Returns:
         ``(generic_reward (M, 3), fallen (M,))``.
     """
+    cached = cached_oracle_table(params, damage, cache_dir, dt, gait_duration,
+                                 solver_iterations)
+    if cached is not None:
+        return cached
     path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration, solver_iterations)
-    n = len(params)
-    if path.is_file():
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                gr, fallen = npz['generic_reward'], npz['fallen']
-            if gr.shape == (n, 3) and fallen.shape == (n,) and np.all(np.isfinite(gr)):
-                return gr.astype(float), fallen.astype(bool)
-        except Exception:  # corrupt or truncated: recompute below
-            pass
     gr, fallen = compute_oracle_table(params, damage, workers, dt, gait_duration,
                                       solver_iterations)
     atomic_write(path, lambda handle: np.savez(
