@@ -215,6 +215,31 @@ def test_killed_nodes_come_back_and_the_mission_completes(graph):
     assert all(nodes.alive().values()), nodes.logs()
 
 
+
+def test_a_result_not_yet_heard_when_the_adapter_stopped_is_said_again_after_it_restarts(graph):
+    """The adapter is killed just after a mission ended: a client that had not heard the
+    result yet hears it from the restarted adapter, naming its mission."""
+    nodes, client = graph
+    diag = Diagnostics(client)
+    diag.go_to_pose(0.3, 0.0)
+    client.spin_until(diag.get_result, 200, 'the end of the mission')
+    ended = diag.get_result().values
+    nodes.kill('sela_adapter')
+    heard = len(diag.statuses)
+    nodes.start('sela_adapter')
+
+    def said_again():
+        return any(s.name == ifc.MISSION_STATUS and 'success' in conv.status_values(s)
+                   and conv.status_values(s)['mission'] == ended['mission']
+                   for s in list(diag.statuses)[heard:])
+
+    client.spin_until(said_again, 120, f"mission {ended['mission']}'s result said again")
+    again = next(conv.status_values(s) for s in list(diag.statuses)[heard:]
+                 if s.name == ifc.MISSION_STATUS and 'success' in conv.status_values(s))
+    assert (again['success'], again['steps'], again['code']) == (
+        ended['success'], ended['steps'], ended['code']), (again, ended)
+
+
 OBSTACLE = (0.6, 0.6, 1.2, 1.2)
 
 

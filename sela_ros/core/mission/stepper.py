@@ -61,6 +61,7 @@ class MissionStepper:
         self.steps = 0
         self.failed_steps = 0
         self.result = None  # True / False once DONE
+        self.ended = None  # (code, reason) of the result, once DONE
         # Counts the missions taken (saved with them): a result names its mission, so a
         # client can tell the result of its own goal from a repeat of an earlier one.
         self.mission_id = 0
@@ -154,7 +155,7 @@ class MissionStepper:
         if unchecked:
             self.resume = self.pose = None  # a new mission, from where the robot is
         self.steps = 0
-        self.result = None
+        self.result = self.ended = None
         self.mission_id += 1
         if self.state in (State.IDLE, State.DONE):
             self.state = State.READY
@@ -474,6 +475,7 @@ class MissionStepper:
         if self.state not in (State.EXECUTING, State.VERDICT, State.RESETTING):
             self.state = State.DONE
         self.result = success
+        self.ended = (code, reason)
         self.cancel = None
         where = '' if pose is None else f', pose ({pose[0]:.2f}, {pose[1]:.2f})'
         reached = self.goal_index - (0 if success else 1)
@@ -482,9 +484,7 @@ class MissionStepper:
         # restart, not half done).
         return [Report(Level.OK if success else Level.ERROR,
                        f'{reason} after {self.steps} steps{where}'),
-                self._save(),
-                PublishStatus(Level.OK if success else Level.ERROR, reason,
-                              dict(self.status(), code=code)),
+                self._save(), self._result_status(),
                 MissionEnded(self.mission_id, success, code, reason, self.steps,
                              None if pose is None else tuple(float(v) for v in pose),
                              max(0, reached), max(1, self.goal_count))]
@@ -494,6 +494,11 @@ class MissionStepper:
     def status(self, reward=None):
         """The mission status as text values (see :mod:`sela_ros.core.mission.status`)."""
         return mission_status(self, reward)
+
+    def _result_status(self):
+        code, reason = self.ended
+        return PublishStatus(Level.OK if self.result else Level.ERROR, reason,
+                             dict(self.status(), code=code))
 
     def _save(self):
         return SaveState(self.snapshot())
@@ -522,7 +527,10 @@ class MissionStepper:
             'pose': None if pose is None else _list(pose),
             'adapting': self.logic.adapting, 'adaptations': self.logic.adaptations,
             'last': None if last is None else [int(last[0]), _list(last[1])],
-            'next_id': self.next_id, 'pending': pending, 'reset_needed': self.reset_needed}}
+            'next_id': self.next_id, 'pending': pending, 'reset_needed': self.reset_needed,
+            'result': None if self.result is None or self.ended is None else {
+                'success': bool(self.result), 'code': self.ended[0],
+                'reason': self.ended[1]}}}
 
     def restore(self, snapshot, now):
         """Take back what :meth:`snapshot` saved; returns the commands (reports) it gives.
@@ -530,7 +538,8 @@ class MissionStepper:
 
         What was learned always comes back. A mission in progress comes back only if the
         robot turns out to be where it was (the first odometry decides); a gait in flight
-        waits for its outcome.
+        waits for its outcome. A mission that had ended says its result again: a client
+        that had not heard it when the adapter stopped hears it now.
         """
         self.sela.load_state_dict(snapshot['sela'])
         m = snapshot['mission']
@@ -539,6 +548,14 @@ class MissionStepper:
         self.failed_steps = int(m.get('failed_steps', 0))
         self.mission_id = self.restored_mission = int(m.get('mission_id', 0))
         state = State(m['state'])
+        result = m.get('result')
+        if state is State.DONE and result is not None:
+            self.state, self.steps = State.DONE, int(m['steps'])
+            self.goal_index = int(m.get('goal_index', 1))
+            self.goal_count = int(m.get('goal_count', 1))
+            self.result = bool(result['success'])
+            self.ended = (str(result['code']), str(result['reason']))
+            return [self._result_status()]
         if m['goal'] is None or state in (State.IDLE, State.DONE):
             return []
         self.goal = np.array(m['goal'], dtype=float)

@@ -247,6 +247,27 @@ def test_each_mission_is_numbered_and_its_result_names_it_also_after_a_restart()
     assert of(restarted(GoalReceived((3.0, 0.0))), PublishStatus)[0].values['mission'] == '3'
 
 
+def test_a_mission_that_ended_before_a_restart_says_its_result_again():
+    """The adapter stopped just after a mission ended, before its client heard the result:
+    the restarted adapter says that result again, naming the mission, and goes on idle."""
+    d = Driver()
+    request = d.start(goal=(0.25, 0.0))
+    gait = only(d.plan(request), SendGait)
+    d.outcome(gait)
+    d(VerdictReceived(gait.behavior_id, False))
+    assert d.state is State.DONE
+    restarted = Driver()
+    out = restarted.stepper.restore(of(d.log, SaveState)[-1].snapshot, 0.0)
+    result = only(out, PublishStatus)
+    assert result.level is Level.OK and result.message == 'goal reached'
+    assert (result.values['mission'], result.values['success'], result.values['code'],
+            result.values['steps']) == ('1', 'True', 'succeeded', '1')
+    assert restarted.state is State.DONE and not of(out, MissionEnded)  # no action to end
+    out = restarted(GoalReceived((1.0, 0.0)))
+    assert of(out, PublishStatus)[0].values['mission'] == '2'
+    assert 'success' not in of(out, PublishStatus)[0].values
+
+
 def test_outcomes_of_other_commands_are_ignored():
     d = Driver()
     gait = only(d.plan(d.start()), SendGait)
