@@ -11,7 +11,9 @@ fallen robot righted where it lies. Methods:
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
-  measured with its own condition and the conditions near it left out (:func:`leave_out`).
+  measured with its own condition and the conditions near it left out (:func:`leave_out`);
+* ``library-own``: the tables mixed from the whole library, the damage's own condition in
+  (a damage the library foresaw: what a table for it gives).
 
 Damages are foreseen (their table ships beside the map) or not (``/own-left-out``: the single
 leg with its own table removed from the priors; every other damage is in no table). The
@@ -57,7 +59,8 @@ FORESEEN = tuple((f'remove:{leg}', f'remove:{leg}', False)
 GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
 METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.sd': 1.0},
            'none': None, 'library-select': {'priors.weights.sd': 'none'},
-           'library': {'priors.weights.sd': 1.0}, 'oracle': None, 'oracle-restricted': None}
+           'library': {'priors.weights.sd': 1.0}, 'library-own': {'priors.weights.sd': 1.0},
+           'oracle': None, 'oracle-restricted': None}
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -65,7 +68,7 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 ORACLE_METHODS = ('oracle', 'oracle-restricted')
 #: Methods that take their tables from ``--library``, each damage with its own condition and
 #: its near duplicates left out (:func:`leave_out`).
-LIBRARY_METHODS = ('library-select', 'library')
+LIBRARY_METHODS = ('library-select', 'library', 'library-own')
 #: Two conditions are near duplicates when their tables differ by less than this, rms over
 #: the gaits that stand in both, in units of the chaining error (RESIDUAL_SCALE).
 NEAR_DUPLICATE = 1.0
@@ -166,7 +169,9 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
     if method in ORACLE_METHODS:
         return run_oracle(case, goal, method, seed, args)
     left_out, priors_value = [], 'auto'
-    if method in LIBRARY_METHODS:
+    if method == 'library-own':
+        priors_value, leave_out_own = args.library, False
+    elif method in LIBRARY_METHODS:
         priors_value, left_out = library[label]
         leave_out_own = False  # the library's file for this damage has it left out
     elif METHODS[method] is None:
@@ -178,7 +183,8 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
               weights_sd=settings.get('priors.weights.sd'), **extra)
     out = run_method(job)
-    foreseen = priors_value == 'auto' and not leave_out_own and damage in shipped
+    foreseen = is_foreseen(label, method) if method == 'library-own' else (
+        priors_value == 'auto' and not leave_out_own and damage in shipped)
     return {'case': label, 'damage': damage, 'foreseen': foreseen, 'goal': list(goal),
             'method': method, 'seed': seed, 'success': out['success'], 'steps': out['steps'],
             'falls': out['falls'], 'wall_seconds': round(out['wall_seconds'], 2),
@@ -418,8 +424,7 @@ def table(rows):
              '| worst ratio | median falls/run | falls | every run (steps, F per fall, x '
              'failed) |', '|' + '---|' * 11]
     for r in rows:
-        foreseen = 'no' if ('/own-left-out' in r['case'] or r['case'] not in
-                            {c[0] for c in FORESEEN}) else 'yes'
+        foreseen = 'yes' if is_foreseen(r['case'], r['method']) else 'no'
         lines.append(f"| {r['case']} | {foreseen} | {r['method']} | {r['success']}/{r['runs']} "
                      f"| {r['median_steps']:g} | {_fmt(r['oracle_median'], '{:g}')} "
                      f"| {_fmt(r['median_ratio'])}x | {_fmt(r['worst_ratio'])}x "
@@ -427,16 +432,23 @@ def table(rows):
     return '\n'.join(lines)
 
 
+def is_foreseen(case, method):
+    """Whether ``method`` ran ``case`` with a table of that damage: a foreseen case, or a
+    condition of the library run with the whole library (``library-own``)."""
+    return case in {c[0] for c in FORESEEN} or (method == 'library-own'
+                                                 and case.endswith('/own-left-out'))
+
+
 def totals(rows, runs, methods):
     """Per method and group (unforeseen, foreseen): the headline figures."""
     lines = ['| group | method | runs | success | median steps | median of the cells\' '
              'ratios | worst cell ratio | falls |', '|' + '---|' * 8]
-    foreseen_cases = {c[0] for c in FORESEEN}
-    for group, pick in (('unforeseen', lambda c: c not in foreseen_cases),
-                        ('foreseen', lambda c: c in foreseen_cases)):
+    for group, foreseen in (('unforeseen', False), ('foreseen', True)):
         for method in methods:
-            mine = [r for r in runs if r['method'] == method and pick(r['case'])]
-            cells = [r for r in rows if r['method'] == method and pick(r['case'])
+            mine = [r for r in runs if r['method'] == method
+                    and is_foreseen(r['case'], method) == foreseen]
+            cells = [r for r in rows if r['method'] == method
+                     and is_foreseen(r['case'], method) == foreseen
                      and r['median_ratio'] is not None]
             if not mine:
                 continue
@@ -458,14 +470,13 @@ def paired(runs, methods):
         return ''
     first = methods[0]
     by_key = {(r['case'], tuple(r['goal']), r['seed'], r['method']): r for r in runs}
-    foreseen_cases = {c[0] for c in FORESEEN}
     lines = [f'| group | method | runs paired | total steps ({first}) | total steps | fewer '
              '| as many | more | falls (' + first + ') | falls |', '|' + '---|' * 10]
-    for group, pick in (('unforeseen', lambda c: c not in foreseen_cases),
-                        ('foreseen', lambda c: c in foreseen_cases)):
+    for group, foreseen in (('unforeseen', False), ('foreseen', True)):
         for method in methods[1:]:
             pairs = [(by_key[(c, g, s, first)], r) for (c, g, s, m), r in by_key.items()
-                     if m == method and pick(c) and (c, g, s, first) in by_key]
+                     if m == method and is_foreseen(c, method) == foreseen
+                     and (c, g, s, first) in by_key]
             if not pairs:
                 continue
             a = [p[0]['steps'] for p in pairs]

@@ -53,6 +53,16 @@ def test_a_damage_foreseen_keeps_its_table_and_the_same_damage_unforeseen_does_n
     assert load_damage_priors(library[unforeseen[0]][0]).names == names[1:]
 
 
+
+def test_the_whole_library_foresees_its_own_conditions_only(compare):
+    """``library-own`` runs a condition with its own table in (foreseen); a damage between
+    the grid points has none, and any other method's own-left-out case is unforeseen."""
+    assert compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'library-own')
+    assert not compare.is_foreseen('shorten:front_left:0.5', 'library-own')
+    assert not compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'library')
+    assert not compare.is_foreseen('remove:front_left/own-left-out', 'mixture')
+    assert compare.is_foreseen('remove:front_left', 'mixture')
+
 def test_a_near_duplicate_of_the_damage_is_left_out_with_it(compare):
     rng = np.random.default_rng(1)
     gr = rng.normal(0, 0.3, (3, 50, 3))
