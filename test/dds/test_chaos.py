@@ -56,9 +56,12 @@ def test_goals_are_reached_and_nothing_learned_is_lost_while_nodes_are_killed():
         for goal in GOALS:
             mission.go_to_pose(*goal, timeout=120)
             while mission.get_result() is None:
-                client.spin_until(lambda: mission.get_result() is not None
-                                  or (kill_at and len(mission.steps) >= kill_at[0]), 600,
-                                  f'the mission to {goal} (or the next kill)')
+                try:
+                    client.spin_until(lambda: mission.get_result() is not None
+                                      or (kill_at and len(mission.steps) >= kill_at[0]), 600,
+                                      f'the mission to {goal} (or the next kill)')
+                except TimeoutError as stuck:  # what each node said, to tell why
+                    raise AssertionError((str(stuck), killed, nodes.logs())) from None
                 saved = _observations(nodes.state_file)
                 if saved is not None:
                     # Nothing learned is ever lost: every saved list extends the previous one.
