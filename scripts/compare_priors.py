@@ -52,8 +52,15 @@ UNFORESEEN = tuple((f'remove:{leg}/own-left-out', f'remove:{leg}', True)
                        'block:rear_right.knee=0.3',
                        'remove:front_left,remove:middle_left',
                        'shorten:rear_left:0.7,block:front_right.knee=-0.2',
-                       # Between the library's grid points (0.3, 0.6, 0.8).
-                       'shorten:rear_left:0.7', 'shorten:middle_left:0.45'))
+                       # Between the library's grid points (lengths 0.3, 0.6, 0.8; knees
+                       # at -0.4, 0, 0.4; limp hips; pairs at 0.6), or beside them (a limp
+                       # knee, a leg removed and another shortened).
+                       'shorten:rear_left:0.7', 'shorten:middle_left:0.45',
+                       'shorten:rear_right:0.7', 'shorten:front_right:0.45',
+                       'block:front_left.knee=0.2', 'weaken:middle_left.hip_pitch=0.3',
+                       'weaken:front_left.knee=0.0',
+                       'shorten:front_left:0.7,shorten:middle_right:0.7',
+                       'remove:rear_right,shorten:front_left:0.6'))
 FORESEEN = tuple((f'remove:{leg}', f'remove:{leg}', False)
                  for leg in ('middle_right', 'front_left', 'rear_right'))
 GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
@@ -406,8 +413,8 @@ def figure(runs, oracle, methods, path):
         ax.text(i - 0.4, 0.05, kind, rotation=90, fontsize=7,
                 transform=ax.get_xaxis_transform(), va='bottom')
     ax.set_xticks([])
-    ax.set_xlabel(f'{len(cases)} damages, each with its own table and its near duplicates '
-                  'left out (grouped by kind)')
+    ax.set_xlabel(f'{len(cases)} damages, grouped by kind; each with its own table and its '
+                  'near duplicates left out (library-own: the whole library)')
     ax.set_ylabel("median steps / oracle's\n(dot: median of 3 goals; line: their range)")
     ax.legend(loc='upper right', fontsize=8)
     fig.tight_layout()
