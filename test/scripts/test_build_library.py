@@ -1,22 +1,14 @@
 """The damage library's build plan: its conditions, its covering gaits, the gaits inferred."""
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
+from script_modules import load_script
 
 from sim_bridge.damage import parse_damage
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope='module')
 def lib():
-    spec = importlib.util.spec_from_file_location('build_library',
-                                                  ROOT / 'scripts' / 'build_library.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script('build_library')
 
 
 def test_the_plan_spans_the_kinds_parses_and_fits_the_budget(lib):

@@ -1,32 +1,21 @@
 """The leave-one-out comparison's bookkeeping: its cases, the tables each case is run with,
 the oracle's medians taken from its own runs."""
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
+from script_modules import load_script
 
 from sela_ros.core.learning import DamagePriors
 from sela_ros.core.learning.damage_priors import load_damage_priors
 from sim_bridge.damage import parse_damage
 
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _module(name):
-    spec = importlib.util.spec_from_file_location(name, ROOT / 'scripts' / f'{name}.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
 
 @pytest.fixture(scope='module')
 def compare():
-    return _module('compare_priors')
+    return load_script('compare_priors')
 
 
 def test_every_condition_of_the_plan_is_a_case_then_the_damages_between(compare):
-    plan = _module('build_library').conditions()
+    plan = load_script('build_library').conditions()
     cases = compare.library_cases()
     labels = [c[0] for c in cases]
     assert len(set(labels)) == len(labels)

@@ -1,22 +1,10 @@
 """The map's error against a damaged robot, by the displacement the map predicts."""
-import importlib.util
-from pathlib import Path
-
 import numpy as np
-
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _module():
-    spec = importlib.util.spec_from_file_location('prior_error',
-                                                  ROOT / 'scripts' / 'prior_error.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from script_modules import load_script
 
 
 def test_the_error_is_given_per_band_of_the_predicted_step():
-    prior_error = _module()
+    prior_error = load_script('prior_error')
     # Gaits the map says go 0.05 m and 0.35 m forward; the robot goes half as far.
     x = np.array([[0.05, 0.0, 0.0]] * 3 + [[0.35, 0.0, 0.0]] * 5)
     y = x * [0.5, 1.0, 1.0]
