@@ -13,7 +13,13 @@ fallen robot righted where it lies. Methods:
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
   measured with its own condition and the conditions near it left out (:func:`leave_out`);
 * ``library-own``: the tables mixed from the whole library, the damage's own condition in
-  (a damage the library foresaw: what a table for it gives).
+  (a damage the library foresaw: what a table for it gives);
+* ``bound-own``: no damage priors, the GPs' prior mean the damage's own table (its library
+  condition, or its whole oracle table): SELA on a damage known in advance;
+* ``bound-fit``: no damage priors, the prior mean the best mixture of the library's tables
+  (intact map plus non-negative weights on their deviations; the damage's own condition and
+  its near duplicates left out) fitted to every gait known of the damage, which no robot
+  knows: the most that combining the library could give (:func:`bound_table`).
 
 Damages are foreseen (their table ships beside the map) or not (``/own-left-out``: the single
 leg with its own table removed from the priors; every other damage is in no table). The
@@ -67,7 +73,7 @@ GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
 METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.sd': 1.0},
            'none': None, 'library-select': {'priors.weights.sd': 'none'},
            'library': {'priors.weights.sd': 1.0}, 'library-own': {'priors.weights.sd': 1.0},
-           'oracle': None, 'oracle-restricted': None}
+           'oracle': None, 'oracle-restricted': None, 'bound-own': None, 'bound-fit': None}
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -76,6 +82,8 @@ ORACLE_METHODS = ('oracle', 'oracle-restricted')
 #: Methods that take their tables from ``--library``, each damage with its own condition and
 #: its near duplicates left out (:func:`leave_out`).
 LIBRARY_METHODS = ('library-select', 'library', 'library-own')
+#: Methods whose prior mean is a table of the damage (:func:`bound_table`; need --library).
+BOUND_METHODS = ('bound-own', 'bound-fit')
 #: Two conditions are near duplicates when their tables differ by less than this, rms over
 #: the gaits that stand in both, in units of the chaining error (RESIDUAL_SCALE).
 NEAR_DUPLICATE = 1.0
@@ -175,8 +183,13 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
     label, damage, leave_out_own = case
     if method in ORACLE_METHODS:
         return run_oracle(case, goal, method, seed, args)
-    left_out, priors_value = [], 'auto'
-    if method == 'library-own':
+    left_out, priors_value, prior_mean = [], 'auto', None
+    if method in BOUND_METHODS:
+        prior_mean = bound_table(damage, method, args.library)
+        if prior_mean is None:
+            return None
+        priors_value, leave_out_own = 'none', False
+    elif method == 'library-own':
         priors_value, leave_out_own = args.library, False
     elif method in LIBRARY_METHODS:
         priors_value, left_out = library[label]
@@ -188,9 +201,9 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
     job = Job('sela', np.random.SeedSequence(seed), str(default_archive_path()), damage,
               tuple(goal), noise_std=args.noise_std, max_steps=args.max_steps,
               priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
-              weights_sd=settings.get('priors.weights.sd'), **extra)
+              weights_sd=settings.get('priors.weights.sd'), prior_mean=prior_mean, **extra)
     out = run_method(job)
-    foreseen = is_foreseen(label, method) if method == 'library-own' else (
+    foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (
         priors_value == 'auto' and not leave_out_own and damage in shipped)
     return {'case': label, 'damage': damage, 'foreseen': foreseen, 'goal': list(goal),
             'method': method, 'seed': seed, 'success': out['success'], 'steps': out['steps'],
@@ -200,6 +213,57 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
 
 
 _ORACLE_TABLES = {}
+_BOUND_TABLES = {}
+
+
+def best_mixture(intact, tables, truth, rows, scale):
+    """``intact + sum_k w_k (tables[k] - intact)`` with the weights ``w >= 0`` nearest, in
+    least squares over ``rows`` of the outputs divided by ``scale``, to ``truth``."""
+    from scipy.optimize import nnls
+
+    deviations = np.asarray(tables, dtype=float) - intact[None]
+    design = (deviations[:, rows] / scale).reshape(len(deviations), -1).T
+    weights, _ = nnls(design, ((truth[rows] - intact[rows]) / scale).reshape(-1))
+    return intact + np.tensordot(weights, deviations, axes=1)
+
+
+def bound_table(damage, method, library_path):
+    """The prior mean of a bound method on ``damage`` (``(M, 3)``), or None when nothing of
+    the damage is known (kept per process). ``bound-own``: the library's table of the
+    damage where it holds it, else its whole oracle table. ``bound-fit``: the intact map
+    plus the non-negative mixture of the library's deviations from it (the damage's own
+    condition and its near duplicates left out, :func:`leave_out`) nearest, in units of the
+    chaining error, to what is known of the damage on every gait known standing."""
+    key = (damage, method)
+    if key not in _BOUND_TABLES:
+        sys.path.insert(0, str(ROOT / 'scripts'))
+        import build_library
+
+        from sela_ros.core.learning import resolve_priors
+        from sela_ros.core.learning.damage_priors import RESIDUAL_SCALE
+        from sela_ros.core.storage import default_archive_path, load_archive
+        from sim_bridge.damage import parse_damage
+
+        archive = load_archive(default_archive_path())
+        intact = archive.generic_reward[:, :3]
+        shipped = resolve_priors('auto', default_archive_path(), archive.params)
+        whole = resolve_priors(library_path, default_archive_path(), archive.params)
+        known = build_library.known_outcomes(archive, damage, shipped=shipped)
+        canonical = parse_damage(damage).canonical()
+        own = [i for i, n in enumerate(whole.names) if parse_damage(n).canonical() == canonical]
+        if method == 'bound-own' and own:
+            _BOUND_TABLES[key] = whole.generic_reward[own[0]][:, :3].astype(float)
+        elif known is None:
+            _BOUND_TABLES[key] = None
+        elif method == 'bound-own':
+            _BOUND_TABLES[key] = known[0]
+        else:
+            gr, fallen, where, _ = known
+            kept, _ = leave_out(whole, damage)
+            _BOUND_TABLES[key] = best_mixture(intact, kept.generic_reward[:, :, :3], gr,
+                                              where & ~fallen, RESIDUAL_SCALE)
+    return _BOUND_TABLES[key]
+
 
 
 def oracle_table(damage, restrict):
@@ -442,8 +506,8 @@ def table(rows):
 def is_foreseen(case, method):
     """Whether ``method`` ran ``case`` with a table of that damage: a foreseen case, or a
     condition of the library run with the whole library (``library-own``)."""
-    return case in {c[0] for c in FORESEEN} or (method == 'library-own'
-                                                 and case.endswith('/own-left-out'))
+    return case in {c[0] for c in FORESEEN} or method == 'bound-own' or (
+        method == 'library-own' and case.endswith('/own-left-out'))
 
 
 def totals(rows, runs, methods):
@@ -540,7 +604,7 @@ def main(argv=None):
                         help="draw every condition's ratios to the oracle here (PNG)")
     parser.add_argument('--library', default=None,
                         help='a damage library (scripts/build_library.py --assemble) for the '
-                             'methods ' + ', '.join(LIBRARY_METHODS))
+                             'methods ' + ', '.join(LIBRARY_METHODS + BOUND_METHODS))
     parser.add_argument('--report-only', action='store_true',
                         help='run nothing: print the tables of the runs in --out')
     args = parser.parse_args(argv)
@@ -578,6 +642,8 @@ def main(argv=None):
         archive = load_archive(default_archive_path())
         priors = resolve_priors('auto', default_archive_path(), archive.params)
         library = {}
+        if set(methods) & set(BOUND_METHODS) and not args.library:
+            parser.error(f'the methods {BOUND_METHODS} need --library')
         if set(methods) & set(LIBRARY_METHODS):
             if not args.library:
                 parser.error(f'the methods {LIBRARY_METHODS} need --library')
@@ -593,8 +659,9 @@ def main(argv=None):
         shipped = tuple(priors.names) if priors is not None else ()
         for n, run in enumerate(_runs(todo, shipped, args, library), 1):
             if run is None:
-                print(f'[{n}/{len(todo)}] no table of its outcomes for the oracle (its '
-                      'median comes from docs/results where there is one)', flush=True)
+                print(f'[{n}/{len(todo)}] nothing known of the damage\'s outcomes for the '
+                      'oracle or a bound (the oracle\'s median comes from docs/results where '
+                      'there is one)', flush=True)
                 continue
             done.append(run)
             if args.out:

@@ -34,6 +34,7 @@ Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measureme
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -259,6 +260,9 @@ class Job:
     horizon: float = None
     noise_seed: int = None
     weights_sd: object = None  # priors.weights.sd (None: the default)
+    # (M, 3) the GPs' prior mean in place of the map's (None: the map's): what SELA does with
+    # a given table as its prior, for bounds (scripts/compare_priors.py, bound-own, bound-fit)
+    prior_mean: object = None
 
 
 def run_method(job: Job):
@@ -288,6 +292,9 @@ def run_method(job: Job):
                                priors=worker_priors(job.priors, job.archive, job.damage,
                                                     job.leave_out_own),
                                horizon=job.horizon, weights_sd=job.weights_sd)
+        if job.prior_mean is not None:
+            problem = dataclasses.replace(problem,
+                                          prior_gr=np.asarray(job.prior_mean, dtype=float))
         result = METHODS[job.name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),

@@ -179,3 +179,24 @@ def test_chained_runs_count_each_pair_and_are_cached(tmp_path, monkeypatch):
     assert np.array_equal(again[0], runs) and np.array_equal(again[1], falls)
     with pytest.raises(AssertionError, match='ran again'):  # other pairs: not cached
         chained_runs(params, 'remove:rear_left', [0], [[2, 1]], cache_dir=tmp_path)
+
+
+def test_a_replicate_told_a_prior_mean_chooses_by_it(archive_path):
+    """``Job.prior_mean`` replaces the map's generic rewards as the GPs' prior mean (the
+    bounds of scripts/compare_priors.py): the same table changes nothing, and a table in
+    which one gait alone moves, straight to the first waypoint, has that gait chosen."""
+    from sela_ros.core.storage import load_archive
+    from sela_ros.experiments.hexapod import Job, run_method
+
+    def first(prior_mean):
+        return run_method(Job('sela', np.random.SeedSequence(0), str(archive_path), 'intact',
+                              (1.0, 0.0), max_steps=1, priors='none', noise_seed=0,
+                              prior_mean=prior_mean))['behaviors']
+
+    archive = load_archive(archive_path)
+    chosen = first(None)
+    assert first(archive.generic_reward) == chosen
+    only = (chosen[0] + 1) % len(archive)
+    table = np.zeros_like(archive.generic_reward)
+    table[only, 0] = 0.6
+    assert first(table) == [only]

@@ -75,3 +75,28 @@ def test_the_oracles_medians_come_from_its_runs(compare):
     assert compare.measured_oracle(runs, whole=True) == {pair: 8.0}
     assert compare.measured_oracle(runs, whole=False) == {('remove:front_left', (2.0, 2.0)): 7.0}
     assert len(compare.measured_oracle(runs)) == 2
+
+
+def test_the_best_mixture_finds_the_weights_of_a_damage_the_tables_span(compare):
+    rng = np.random.default_rng(2)
+    intact = rng.normal(0, 0.3, (60, 3))
+    tables = intact + rng.normal(0, 0.2, (3, 60, 3))
+    truth = intact + 0.5 * (tables[0] - intact) + 0.25 * (tables[2] - intact)
+    rows = np.arange(60) < 40  # fitted on 40 gaits, predicts the other 20
+    scale = np.array([0.1, 0.1, 0.25])
+    np.testing.assert_allclose(compare.best_mixture(intact, tables, truth, rows, scale), truth,
+                               atol=1e-9)
+    # A damage that undoes a table's deviation is out of reach: weights are never negative.
+    # (Each table deviates on its own gaits here, so no other table explains any of it.)
+    apart = np.repeat(intact[None], 3, axis=0)
+    for k in range(3):
+        apart[k, 20 * k:20 * k + 20] += rng.normal(0, 0.2, (20, 3))
+    undo = intact - 0.5 * (apart[1] - intact)
+    fitted = compare.best_mixture(intact, apart, undo, np.ones(60, bool), scale)
+    np.testing.assert_allclose(fitted, intact, atol=1e-9)
+
+
+def test_a_bound_with_the_damages_own_table_counts_as_foreseen(compare):
+    assert compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'bound-own')
+    assert compare.is_foreseen('shorten:front_left:0.5', 'bound-own')
+    assert not compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'bound-fit')
