@@ -19,7 +19,9 @@ fallen robot righted where it lies. Methods:
 * ``bound-fit``: no damage priors, the prior mean the best mixture of the library's tables
   (intact map plus non-negative weights on their deviations; the damage's own condition and
   its near duplicates left out) fitted to every gait known of the damage, which no robot
-  knows: the most that combining the library could give (:func:`bound_table`).
+  knows: the most that the shipped mixture's model could give (:func:`bound_table`);
+* ``bound-fit-signed``: the same with weights of any sign, every linear combination of the
+  library's tables: the most that any mixture of them could give.
 
 Damages are foreseen (their table ships beside the map) or not (``/own-left-out``: the single
 leg with its own table removed from the priors; every other damage is in no table). The
@@ -73,7 +75,8 @@ GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
 METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.sd': 1.0},
            'none': None, 'library-select': {'priors.weights.sd': 'none'},
            'library': {'priors.weights.sd': 1.0}, 'library-own': {'priors.weights.sd': 1.0},
-           'oracle': None, 'oracle-restricted': None, 'bound-own': None, 'bound-fit': None}
+           'oracle': None, 'oracle-restricted': None, 'bound-own': None, 'bound-fit': None,
+           'bound-fit-signed': None}
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -83,7 +86,7 @@ ORACLE_METHODS = ('oracle', 'oracle-restricted')
 #: its near duplicates left out (:func:`leave_out`).
 LIBRARY_METHODS = ('library-select', 'library', 'library-own')
 #: Methods whose prior mean is a table of the damage (:func:`bound_table`; need --library).
-BOUND_METHODS = ('bound-own', 'bound-fit')
+BOUND_METHODS = ('bound-own', 'bound-fit', 'bound-fit-signed')
 #: Two conditions are near duplicates when their tables differ by less than this, rms over
 #: the gaits that stand in both, in units of the chaining error (RESIDUAL_SCALE).
 NEAR_DUPLICATE = 1.0
@@ -216,14 +219,17 @@ _ORACLE_TABLES = {}
 _BOUND_TABLES = {}
 
 
-def best_mixture(intact, tables, truth, rows, scale):
-    """``intact + sum_k w_k (tables[k] - intact)`` with the weights ``w >= 0`` nearest, in
-    least squares over ``rows`` of the outputs divided by ``scale``, to ``truth``."""
+def best_mixture(intact, tables, truth, rows, scale, signed=False):
+    """``intact + sum_k w_k (tables[k] - intact)`` with the weights nearest, in least
+    squares over ``rows`` of the outputs divided by ``scale``, to ``truth``: ``w >= 0`` (the
+    shipped mixture's model), or any sign (``signed``: every linear combination)."""
     from scipy.optimize import nnls
 
     deviations = np.asarray(tables, dtype=float) - intact[None]
     design = (deviations[:, rows] / scale).reshape(len(deviations), -1).T
-    weights, _ = nnls(design, ((truth[rows] - intact[rows]) / scale).reshape(-1))
+    target = ((truth[rows] - intact[rows]) / scale).reshape(-1)
+    weights = np.linalg.lstsq(design, target, rcond=None)[0] if signed else \
+        nnls(design, target)[0]
     return intact + np.tensordot(weights, deviations, axes=1)
 
 
@@ -231,9 +237,10 @@ def bound_table(damage, method, library_path):
     """The prior mean of a bound method on ``damage`` (``(M, 3)``), or None when nothing of
     the damage is known (kept per process). ``bound-own``: the library's table of the
     damage where it holds it, else its whole oracle table. ``bound-fit``: the intact map
-    plus the non-negative mixture of the library's deviations from it (the damage's own
-    condition and its near duplicates left out, :func:`leave_out`) nearest, in units of the
-    chaining error, to what is known of the damage on every gait known standing."""
+    plus the mixture of the library's deviations from it (the damage's own condition and its
+    near duplicates left out, :func:`leave_out`) nearest, in units of the chaining error, to
+    what is known of the damage on every gait known standing (:func:`best_mixture`; weights
+    of any sign for ``bound-fit-signed``)."""
     key = (damage, method)
     if key not in _BOUND_TABLES:
         sys.path.insert(0, str(ROOT / 'scripts'))
@@ -261,7 +268,8 @@ def bound_table(damage, method, library_path):
             gr, fallen, where, _ = known
             kept, _ = leave_out(whole, damage)
             _BOUND_TABLES[key] = best_mixture(intact, kept.generic_reward[:, :, :3], gr,
-                                              where & ~fallen, RESIDUAL_SCALE)
+                                              where & ~fallen, RESIDUAL_SCALE,
+                                              signed=method == 'bound-fit-signed')
     return _BOUND_TABLES[key]
 
 

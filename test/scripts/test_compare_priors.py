@@ -94,9 +94,14 @@ def test_the_best_mixture_finds_the_weights_of_a_damage_the_tables_span(compare)
     undo = intact - 0.5 * (apart[1] - intact)
     fitted = compare.best_mixture(intact, apart, undo, np.ones(60, bool), scale)
     np.testing.assert_allclose(fitted, intact, atol=1e-9)
+    # Every linear combination: a weight of -0.5 undoes it.
+    np.testing.assert_allclose(
+        compare.best_mixture(intact, apart, undo, np.ones(60, bool), scale, signed=True), undo,
+        atol=1e-9)
 
 
 def test_a_bound_with_the_damages_own_table_counts_as_foreseen(compare):
     assert compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'bound-own')
     assert compare.is_foreseen('shorten:front_left:0.5', 'bound-own')
     assert not compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'bound-fit')
+    assert not compare.is_foreseen('shorten:front_left:0.5', 'bound-fit-signed')
