@@ -8,6 +8,7 @@ fallen robot righted where it lies. Methods:
 
 * ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` none);
 * ``mixture``: the tables mixed by weights fitted to the steps (``priors.weights.sd`` 1);
+* ``caution``: the same, with ``acquisition.caution`` 0.15 m;
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -76,7 +77,8 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            'none': None, 'library-select': {'priors.weights.sd': 'none'},
            'library': {'priors.weights.sd': 1.0}, 'library-own': {'priors.weights.sd': 1.0},
            'oracle': None, 'oracle-restricted': None, 'bound-own': None, 'bound-fit': None,
-           'bound-fit-signed': None}
+           'bound-fit-signed': None,
+           'caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15}}
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -204,7 +206,8 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
     job = Job('sela', np.random.SeedSequence(seed), str(default_archive_path()), damage,
               tuple(goal), noise_std=args.noise_std, max_steps=args.max_steps,
               priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
-              weights_sd=settings.get('priors.weights.sd'), prior_mean=prior_mean, **extra)
+              weights_sd=settings.get('priors.weights.sd'),
+              caution=settings.get('acquisition.caution'), prior_mean=prior_mean, **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (
         priors_value == 'auto' and not leave_out_own and damage in shipped)
@@ -486,7 +489,7 @@ def figure(runs, oracle, methods, path):
                 transform=ax.get_xaxis_transform(), va='bottom')
     ax.set_xticks([])
     ax.set_xlabel(f'{len(cases)} damages, grouped by kind; each with its own table and its '
-                  'near duplicates left out (library-own: the whole library)')
+                  'near duplicates left out (library-own, bound-own: the own table in)')
     ax.set_ylabel("median steps / oracle's\n(dot: median of 3 goals; line: their range)")
     ax.legend(loc='upper right', fontsize=8)
     fig.tight_layout()

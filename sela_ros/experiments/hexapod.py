@@ -178,23 +178,25 @@ RECORDED_SELA_PARAMETERS = ('gp.kernel.sigma', 'acquisition.ucb.alpha', 'fall.ri
 
 def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=None,
                 fall_kernel_sigma=None, fall_cost=None, horizon=None,
-                weights_sd=None) -> SELAConfig:
+                weights_sd=None, caution=None) -> SELAConfig:
     """The SELA parameters of a run: those given, the archive's own for the rest."""
     from sela_ros.core.mission import archive_config
 
     given = {'planner.lookahead': lookahead, 'fall.risk.threshold': fall_risk or None,
              'gp.kernel.sigma': kernel_sigma, 'fall.kernel.sigma': fall_kernel_sigma,
              'fall.risk.cost': fall_cost, 'acquisition.ucb.alpha': alpha,
-             'planner.horizon': horizon, 'priors.weights.sd': weights_sd}
+             'planner.horizon': horizon, 'priors.weights.sd': weights_sd,
+             'acquisition.caution': caution}
     return archive_config(archive, {k: v for k, v in given.items() if v is not None})
 
 
 def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  ite_iterations=ITE_MAX_ITERATIONS, kernel_sigma=None, alpha=None,
                  fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
-                 fall_cost=None, priors=None, horizon=None, weights_sd=None) -> Problem:
+                 fall_cost=None, priors=None, horizon=None, weights_sd=None,
+                 caution=None) -> Problem:
     config = sela_config(archive, lookahead, kernel_sigma, alpha, fall_risk,
-                         fall_kernel_sigma, fall_cost, horizon, weights_sd)
+                         fall_kernel_sigma, fall_cost, horizon, weights_sd, caution)
     return Problem(
         candidates=archive.normalised_descriptors(),
         prior_gr=archive.generic_reward,
@@ -260,6 +262,7 @@ class Job:
     horizon: float = None
     noise_seed: int = None
     weights_sd: object = None  # priors.weights.sd (None: the default)
+    caution: float = None  # acquisition.caution (None: the default)
     # (M, 3) the GPs' prior mean in place of the map's (None: the map's): what SELA does with
     # a given table as its prior, for bounds (scripts/compare_priors.py, bound-own, bound-fit)
     prior_mean: object = None
@@ -291,7 +294,8 @@ def run_method(job: Job):
                                fall_cost=job.fall_cost,
                                priors=worker_priors(job.priors, job.archive, job.damage,
                                                     job.leave_out_own),
-                               horizon=job.horizon, weights_sd=job.weights_sd)
+                               horizon=job.horizon, weights_sd=job.weights_sd,
+                               caution=job.caution)
         if job.prior_mean is not None:
             problem = dataclasses.replace(problem,
                                           prior_gr=np.asarray(job.prior_mean, dtype=float))

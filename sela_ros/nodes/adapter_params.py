@@ -14,6 +14,11 @@ PARAMETERS = (
     Spec('gp.noise', 0.001, 'GP noise variance', low=0.0, high=100.0, read_only=True),
     Spec('acquisition.ucb.alpha', 0.05, 'UCB exploration weight', low=0.0, high=100.0,
          read_only=True),
+    Spec('acquisition.caution', NONE, 'once untried gaits land '
+         'this far from their predictions (rms per axis, learnt from the steps), each gait '
+         'is scored by its expected distance to the waypoint, which prefers gaits already '
+         "tried; none = never (the paper's: the predicted distance)", low=0.0, high=100.0,
+         unit=' m', kind='double', word=NONE, read_only=True),
     Spec('goal.eps', 0.1, 'the goal is reached within this distance', low=1e-4, high=100.0,
          unit=' m', read_only=True),
     Spec('fall.risk.threshold', 0.3, 'risk of falling accepted: gaits predicted riskier are '
@@ -76,7 +81,8 @@ PARAMETERS = (
          "sim.solver_iterations the archive must match ('' on a real robot: no check)",
          read_only=True),
 )
-SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'goal.eps',
+SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'acquisition.caution',
+             'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
              'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',
              'planner.lookahead')

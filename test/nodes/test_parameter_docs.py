@@ -66,6 +66,7 @@ def test_auto_and_none_are_spelled_as_words_everywhere():
                      ('sela_adapter', 'gp.kernel.sigma'): 'auto',
                      ('sela_adapter', 'fall.kernel.sigma'): 'auto',
                      ('sela_adapter', 'planner.horizon'): 'auto',
+                     ('sela_adapter', 'acquisition.caution'): 'none',
                      ('sela_adapter', 'priors.max_misfit'): 'none',
                      ('sela_adapter', 'priors.weights.sd'): 'none'}
     shipped = _yaml()

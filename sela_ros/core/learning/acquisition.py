@@ -31,3 +31,39 @@ def ucb(reward_mu, sigma, alpha: float = DEFAULT_ALPHA) -> int:
     if np.isnan(scores).any():
         raise ValueError('UCB scores contain NaN; check the rewards and variances')
     return int(np.argmax(scores))
+
+
+# Caution (``acquisition.caution``): on a robot whose untried gaits land far from where the
+# map and priors say, a gait is scored by its expected distance to the waypoint instead of
+# its predicted one, so that gaits already tried, whose landing is known, are preferred.
+#: Error (m, per axis) of an untried gait's predicted landing before any step has shown it;
+#: it counts as one step's worth in :func:`learnt_error`.
+CAUTION_PRIOR_ERROR = 0.1
+#: Spread (m, per axis) of where a gait already tried lands again: a gait chained from the
+#: last one differs from a standing start by 0.07 m rms in the plane (docs/notebook.md).
+CAUTION_SPREAD = 0.05
+#: Posterior variance (a share of the kernel's) above which a gait counts as untried: its
+#: landing error then measures how wrong the prior is for this robot.
+UNTRIED_VARIANCE = 0.5
+
+
+def learnt_error(surprises) -> float:
+    """Root mean squared error per axis (m) of untried gaits' predicted landings, from the
+    squared planar errors ``surprises`` seen so far, starting from
+    :data:`CAUTION_PRIOR_ERROR` worth one step."""
+    surprises = np.asarray(surprises, dtype=float).reshape(-1)
+    return float(np.sqrt((2.0 * CAUTION_PRIOR_ERROR ** 2 + surprises.sum())
+                         / (2.0 * (1 + surprises.size))))
+
+
+def landing_variance(variance, error) -> np.ndarray:
+    """Per axis, the variance (m^2) of where each gait lands: :data:`CAUTION_SPREAD` for a
+    gait tried, up to ``error`` squared for one far from every gait tried (``variance``: the
+    GP's posterior variance, a share of the kernel's)."""
+    return CAUTION_SPREAD ** 2 + np.clip(np.asarray(variance, dtype=float), 0.0, 1.0) * error ** 2
+
+
+def expected_distance(sq_distance, landing_var) -> np.ndarray:
+    """Approximate expected distance from a target of a landing ``N(mu, landing_var I_2)``
+    whose mean is ``sq_distance`` (squared) away: ``sqrt(d^2 + 2 s^2)``, its root mean square."""
+    return np.sqrt(np.maximum(sq_distance, 0.0) + 2.0 * landing_var)

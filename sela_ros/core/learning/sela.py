@@ -35,7 +35,7 @@ class Decision:
     waypoint: np.ndarray
     predicted_gr: np.ndarray
     predicted_pose: np.ndarray
-    reward: float  # specialised reward: -||waypoint - predicted xy||
+    reward: float  # specialised reward: -||waypoint - predicted xy|| (caution: expected)
     sigma: float   # posterior standard deviation of the chosen behaviour
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     fall_risk: float = 0.0  # predicted risk that the chosen behaviour tips the robot over
@@ -177,6 +177,9 @@ class SELA:
         # the mixture of the tables.
         self._prior_scores = {'table': 0.0, 'mixture': 0.0}
         self._mixture_fit = None
+        # Squared planar error of each untried gait's predicted landing, as it was before the
+        # gait was learnt (acquisition.caution: how wrong the prior is for this robot).
+        self._surprises = []
 
     def set_config(self, config) -> None:
         """Go on with another :class:`SELAConfig` (what is learnt stays)."""
@@ -388,7 +391,10 @@ class SELA:
         selection = self.select_prior()
         mu_t, var, fall_prior = self._posterior(selection)
         x, y = self.motion.predict_xy_columns(pose, mu_t)
-        reward = -np.hypot(x - waypoint[0], y - waypoint[1])
+        landing_var = self._landing_variance(var)
+        sq_distance = (x - waypoint[0]) ** 2 + (y - waypoint[1]) ** 2
+        reward = -(np.sqrt(sq_distance) if landing_var is None
+                   else acquisition.expected_distance(sq_distance, landing_var))
         sigma = np.sqrt(var)
         scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
         risk = self._fall.risk(*fall_prior)
@@ -402,7 +408,7 @@ class SELA:
         if self.config.planner_horizon > 1 and second is not None \
                 and np.linalg.norm(second - waypoint) > 1e-6:
             index = self._two_step_choice(pose, mu_t, scores, risk if fall_aware else None,
-                                          second, index)
+                                          second, index, landing_var)
         gr = mu_t[:, index].copy()
         return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
                         predicted_pose=self.motion.predict(pose, gr),
@@ -445,10 +451,11 @@ class SELA:
                         candidates=top_candidates(index, x, y, sigma, scores),
                         prior=HEDGED)
 
-    def _two_step_choice(self, pose, mu_t, scores, risk, second, index):
+    def _two_step_choice(self, pose, mu_t, scores, risk, second, index, landing_var=None):
         """Among the :data:`TWO_STEP_CANDIDATES` best gaits by ``scores``, the one from whose
         predicted end pose the best next gait (risk weighed as in the first step) lands
-        nearest ``second``; ``index`` if no gait is allowed."""
+        nearest ``second`` (with ``landing_var``, the caution's: in expectation, both
+        landings uncertain); ``index`` if no gait is allowed."""
         finite = np.flatnonzero(np.isfinite(scores))
         if not finite.size:
             return index
@@ -462,7 +469,11 @@ class SELA:
         # Every candidate's end pose at once: (K, M) distances of the next gaits' landings.
         ends = self.motion.predict(pose, mu_t[:, top].T).reshape(len(top), -1)
         cost = self.motion.landing_sq_distances(ends, mu_t, second)  # (K, M), in place:
-        np.sqrt(np.maximum(cost, 0.0, out=cost), out=cost)           # the distances, then
+        np.maximum(cost, 0.0, out=cost)
+        if landing_var is not None:  # the expected distances: both landings' spread
+            cost += 2.0 * landing_var[None, :]
+            cost += 2.0 * landing_var[top][:, None]
+        np.sqrt(cost, out=cost)                                       # the distances, then
         if risk is not None:                                          # + the risk penalty
             cost += penalty
         value = -cost.min(axis=1)
@@ -475,13 +486,48 @@ class SELA:
         ``standing_start``: the step started with the robot standing (the first of a run, or
         after it was put back on its feet), as the damage priors' tables ran every gait."""
         observed = np.asarray(observed_gr, dtype=float).reshape(-1)
+        valid = observed.shape == (self.motion.gr_dim,) and np.all(np.isfinite(observed)) \
+            and isinstance(index, (int, np.integer)) and 0 <= index < self.num_candidates
+        # (The first step of an adaptation with damage priors is hedged over them all: no
+        # one prior predicted it.)
+        hedged = self.priors is not None and len(self.priors) and not self._gp.num_samples
+        if valid and not hedged and self.config.acquisition_caution is not None:
+            self._note_surprise(int(index), observed)
         if self.priors is not None and len(self.priors) and self._gp.num_samples \
-                and self.config.priors_weights_sd is not None and observed.shape == \
-                (self.motion.gr_dim,) and np.all(np.isfinite(observed)) \
-                and isinstance(index, (int, np.integer)) and 0 <= index < self.num_candidates:
+                and self.config.priors_weights_sd is not None and valid:
             self._score_priors(int(index), observed, bool(standing_start))
         self._gp.add_sample(index, observed_gr)
         self._standing.append(bool(standing_start))
+
+    def _note_surprise(self, index, observed) -> None:
+        """Keep how far an untried gait landed from its prediction under the prior in use
+        (before it is learnt: a prequential error)."""
+        mu_t, var = self._gp.query_columns()
+        if var[index] <= acquisition.UNTRIED_VARIANCE:
+            return
+        selection = self.select_prior()
+        if selection.mixture is not None:
+            prior = selection.mixture.mean(self._prior, self.priors.generic_reward)
+        elif selection.index is not None:
+            prior = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
+        else:
+            prior = None
+        if prior is None:
+            predicted = mu_t[:, index]
+        else:
+            idx, _ = self.observations
+            predicted = self._gp.mean_at_with_prior(index, prior[idx], prior[index])
+        self._surprises.append(float(np.sum((observed[:2] - predicted[:2]) ** 2)))
+
+    def _landing_variance(self, var):
+        """Per gait, the variance of its landing if caution is on
+        (``acquisition.caution``, and the untried gaits' learnt error at least that), else
+        None."""
+        caution = self.config.acquisition_caution
+        if caution is None:
+            return None
+        error = acquisition.learnt_error(self._surprises)
+        return acquisition.landing_variance(var, error) if error >= caution else None
 
     def tell_fall(self, index: int, fallen: bool) -> None:
         """Learn whether behaviour ``index`` tipped the robot over. Every step tells it,
@@ -503,6 +549,7 @@ class SELA:
                 'indices': idx.tolist(), 'generic_rewards': grs.tolist(),
                 'standing_starts': list(self._standing),
                 'prior_scores': dict(self._prior_scores),
+                'surprises': list(self._surprises),
                 'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist(),
                 'set_aside': [dict(e) for e in self.set_aside_learning]}
 
@@ -551,3 +598,8 @@ class SELA:
         scores = state.get('prior_scores')
         if isinstance(scores, dict) and set(scores) == set(self._prior_scores):
             self._prior_scores = {k: float(v) for k, v in scores.items()}
+        surprises = state.get('surprises')
+        if isinstance(surprises, list) and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+                and v >= 0 for v in surprises):
+            self._surprises = [float(v) for v in surprises]

@@ -7,7 +7,7 @@ Two words stand for what no number can say: :data:`AUTO` (``gp.kernel.sigma``,
 ``fall.kernel.sigma``, ``planner.horizon``: the archive's own value, which
 :func:`sela_ros.core.mission.archive_config` fills in; with no archive, ``fall.kernel.sigma``
 auto is ``gp.kernel.sigma``) and :data:`NONE` (``priors.max.misfit``, ``priors.weights.sd``:
-that use of the damage priors is off). In a :class:`SELAConfig` either is None;
+that use of the damage priors is off; ``acquisition.caution``: no caution). In a :class:`SELAConfig` either is None;
 :meth:`SELAConfig.to_dict` writes the word and :meth:`SELAConfig.from_dict` reads it.
 """
 from __future__ import annotations
@@ -31,6 +31,11 @@ class SELAConfig:
     gp_kernel_variance: float = gp.DEFAULT_VARIANCE
     gp_noise: float = gp.DEFAULT_NOISE
     acquisition_ucb_alpha: float = acquisition.DEFAULT_ALPHA
+    # m: once untried gaits have landed this far from their predictions (rms per axis, learnt
+    # from the steps: acquisition.learnt_error), each gait is scored by its expected distance
+    # to the waypoint, which prefers gaits whose landing is known; None (none): never, the
+    # predicted distance (the paper's).
+    acquisition_caution: float | None = None
     # m along the path to the waypoint of the reward (hexapod: docs/hexapod_results.md)
     planner_lookahead: float = 0.6
     # Steps looked ahead: 1, the paper's (the gait landing nearest the waypoint), or 2 (the
@@ -100,7 +105,8 @@ AUTO = 'auto'
 #: The word that stands for "off".
 NONE = 'none'
 #: ``{name: word}`` of the parameters a SELAConfig may hold as None.
-WORDS = {'fall.kernel.sigma': AUTO, 'priors.max.misfit': NONE, 'priors.weights.sd': NONE}
+WORDS = {'fall.kernel.sigma': AUTO, 'priors.max.misfit': NONE, 'priors.weights.sd': NONE,
+         'acquisition.caution': NONE}
 #: The parameters whose ``auto`` is the archive's (:func:`sela_ros.core.mission.archive_config`).
 ARCHIVE_AUTO = ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon')
 

@@ -44,7 +44,8 @@ def test_config_dotted_names():
     assert c.gp_kernel_sigma == 0.2 and c.acquisition_ucb_alpha == 0.1
     assert c.goal_eps == 0.1 and c.gp_noise == 0.001
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
-                                'acquisition.ucb.alpha', 'planner.lookahead', 'goal.eps',
+                                'acquisition.ucb.alpha', 'acquisition.caution',
+                                'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
                                 'priors.max.misfit', 'priors.max.misfit.reproduced',
                                 'priors.weights.sd', 'planner.horizon'}
@@ -66,11 +67,13 @@ def test_auto_and_none_are_words_not_numbers():
     assert written['priors.max.misfit'] == 'none'
     assert SELAConfig.from_dict(written) == c
     assert SELAConfig().to_dict()['fall.kernel.sigma'] == 'auto'
+    assert SELAConfig().to_dict()['acquisition.caution'] == 'none'
+    assert SELAConfig.from_dict({'acquisition.caution': 0.15}).acquisition_caution == 0.15
     # A state file's 0 where none is meant reads as none.
     assert SELAConfig.from_dict({'priors.weights.sd': 0.0}).priors_weights_sd is None
     # 0 is no kernel length, no horizon, no cap: the words say what 0 cannot.
     for field in ('gp_kernel_sigma', 'fall_kernel_sigma', 'priors_max_misfit',
-                  'priors_weights_sd'):
+                  'priors_weights_sd', 'acquisition_caution'):
         with pytest.raises(ValueError, match='must be'):
             SELAConfig(**{field: 0.0})
     with pytest.raises(ValueError, match='fall.kernel.sigma'):
@@ -283,3 +286,37 @@ def test_another_config_keeps_what_was_learnt_and_a_wrong_one_is_refused():
     assert sela.config.acquisition_ucb_alpha == 0.0 and sela.observations[0].tolist() == [3]
     with pytest.raises(TypeError, match='SELAConfig'):
         sela.set_config(0.5)
+
+
+def _surprised(caution):
+    """Five gaits the map says all step 0.5 m east; three tried: the one gait that goes
+    0.35 m, and two that go 0.1 m (the map 0.15 and 0.4 m off: about 0.18 m per axis)."""
+    sela = SELA(np.linspace(0, 1, 5)[:, None], np.tile([0.5, 0.0], (5, 1)), PointMotion(),
+                goal=(0.5, 0.0), config={'gp.kernel.sigma': 0.05,
+                                         'acquisition.caution': caution})
+    for index, dx in ((4, 0.1), (0, 0.35), (1, 0.1)):
+        sela.tell(index, [dx, 0.0])
+    return sela
+
+
+def test_caution_prefers_a_gait_tried_once_the_map_proves_wrong():
+    # Untried gaits are predicted to land on the goal, but the steps showed how far off the
+    # map is for this robot: the gait tried that lands 0.15 m short is surer.
+    assert _surprised(0.15).ask(np.zeros(2)).index == 0
+    # Without caution (or above the error learnt) the prediction is taken at its word.
+    assert _surprised(None).ask(np.zeros(2)).index in (2, 3)
+    assert _surprised(0.3).ask(np.zeros(2)).index in (2, 3)
+
+
+def test_what_caution_learnt_survives_a_restart():
+    sela = _surprised(0.15)
+    state = json.loads(json.dumps(sela.state_dict()))
+    assert len(state['surprises']) == 3 and state['surprises'][1] == pytest.approx(0.15 ** 2)
+    other = SELA(np.linspace(0, 1, 5)[:, None], np.tile([0.5, 0.0], (5, 1)), PointMotion())
+    other.load_state_dict(state)
+    assert other.state_dict()['surprises'] == state['surprises']
+    assert other.ask(np.zeros(2)).index == 0
+    # A corrupt list is not taken: the replay's own errors stand.
+    state['surprises'] = ['x', 1.0, float('nan')]
+    other.load_state_dict(state)
+    assert other.state_dict()['surprises'] == pytest.approx([0.16, 0.0225, 0.16], rel=1e-4)
