@@ -7,8 +7,9 @@ Two words stand for what no number can say: :data:`AUTO` (``gp.kernel.sigma``,
 ``fall.kernel.sigma``, ``planner.horizon``: the archive's own value, which
 :func:`sela_ros.core.mission.archive_config` fills in; with no archive, ``fall.kernel.sigma``
 auto is ``gp.kernel.sigma``) and :data:`NONE` (``priors.max.misfit``, ``priors.weights.sd``:
-that use of the damage priors is off; ``acquisition.caution``: no caution). In a :class:`SELAConfig` either is None;
-:meth:`SELAConfig.to_dict` writes the word and :meth:`SELAConfig.from_dict` reads it.
+that use of the damage priors is off; ``acquisition.caution``: no caution). In a
+:class:`SELAConfig` either is None; :meth:`SELAConfig.to_dict` writes the word and
+:meth:`SELAConfig.from_dict` reads it.
 """
 from __future__ import annotations
 
