@@ -8,7 +8,8 @@ fallen robot righted where it lies. Methods:
 
 * ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` none);
 * ``mixture``: the tables mixed by weights fitted to the steps (``priors.weights.sd`` 1);
-* ``caution``: the same, with ``acquisition.caution`` 0.15 m;
+* ``caution``: the same, with ``acquisition.caution`` 0.15 m (every other method runs with
+  it none);
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -207,7 +208,8 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               tuple(goal), noise_std=args.noise_std, max_steps=args.max_steps,
               priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
               weights_sd=settings.get('priors.weights.sd'),
-              caution=settings.get('acquisition.caution'), prior_mean=prior_mean, **extra)
+              caution=settings.get('acquisition.caution', 'none'), prior_mean=prior_mean,
+              **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (
         priors_value == 'auto' and not leave_out_own and damage in shipped)

@@ -262,7 +262,7 @@ class Job:
     horizon: float = None
     noise_seed: int = None
     weights_sd: object = None  # priors.weights.sd (None: the default)
-    caution: float = None  # acquisition.caution (None: the default)
+    caution: object = None  # acquisition.caution, m or 'none' (None: the default)
     # (M, 3) the GPs' prior mean in place of the map's (None: the map's): what SELA does with
     # a given table as its prior, for bounds (scripts/compare_priors.py, bound-own, bound-fit)
     prior_mean: object = None
