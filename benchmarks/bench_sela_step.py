@@ -18,6 +18,7 @@ import time
 import numpy as np  # noqa: E402
 
 from sela_ros.core.learning import SELA, PointMotion, observed_generic_reward  # noqa: E402
+from sela_ros.core.learning.acquisition import learnt_error  # noqa: E402
 
 
 def bench_step(num_candidates, observations=20, dim=8, repeats=15, seed=0):
@@ -65,12 +66,15 @@ def library_like(priors, count, seed=0):
                         np.stack(falls), priors.archive_checksum)
 
 
-def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None):
+def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
+                  caution=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
     step is timed with a damage prior in use; ``mixed``: of two of them added up, from a
-    standing start first, so the mixture of the tables is in use) and two steps ahead."""
+    standing start first, so the mixture of the tables is in use) and two steps ahead;
+    ``caution``: ``acquisition.caution`` (None: the default). The last item returned says
+    whether caution was on in the steps timed."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.mission import make_sela
     from sela_ros.core.storage import default_archive_path, load_archive
@@ -88,7 +92,10 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None)
     else:
         priors = resolve_priors(priors, default_archive_path(), archive.params)
     # One table chosen (priors.weights.sd none), or the tables mixed (the default).
-    sela = make_sela(archive, None if mixed else {'priors.weights.sd': 'none'}, priors=priors)
+    config = {} if mixed else {'priors.weights.sd': 'none'}
+    if caution is not None:
+        config['acquisition.caution'] = caution
+    sela = make_sela(archive, config or None, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
     pose = np.zeros(3)
@@ -103,8 +110,14 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None)
         sela.tell(d.index, 0.9 * true[d.index])
         sela.tell_fall(d.index, False)
         times.append(time.perf_counter() - t0)
+    limit = sela.config.acquisition_caution
+    cautious = limit is not None and learnt_error(sela.state_dict()['surprises']) >= limit
     return (float(np.median(times)), float(np.min(times)), len(archive), d.prior,
-            int(sela.config.planner_horizon))
+            int(sela.config.planner_horizon), cautious)
+
+
+def _on(cautious):
+    return ', caution on' if cautious else ''
 
 
 def main():
@@ -116,6 +129,9 @@ def main():
     parser.add_argument('--tables', type=int, default=84,
                         help='also time a step with this many tables made from the shipped '
                              'ones (a library of that size; 0: not)')
+    parser.add_argument('--caution', type=float, default=None,
+                        help='acquisition.caution for the steps on the shipped map (default: '
+                             "the config's)")
     args = parser.parse_args()
     print('SELA step (ask + tell + fall model, 8-D descriptors, 2 GR dims):')
     for m in (1e3, 1e4, 2e4, 1e5, 1e6):
@@ -125,23 +141,24 @@ def main():
         t, t_min, n = bench_step(int(m), repeats=reps)
         print(f'  {int(m):>8d} candidates, {n - reps + 1:2d}-{n:2d} observations: median '
               f'{1e3 * t:8.2f} ms, min {1e3 * t_min:8.2f} ms')
-    t, t_min, gaits, prior, horizon = bench_shipped()
+    t, t_min, gaits, prior, horizon, cautious = bench_shipped(caution=args.caution)
     print(f'  shipped 8-D map ({gaits} gaits, SE(2), fall GP + support model, damage prior '
           f'in use: {prior}, {horizon} steps ahead), 20-34 observations: median '
-          f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms)')
-    t, t_min, gaits, prior, horizon = bench_shipped(mixed=True)
+          f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms){_on(cautious)}')
+    t, t_min, gaits, prior, horizon, cautious = bench_shipped(mixed=True, caution=args.caution)
     print(f'  the same, the tables mixed on a damage two of them add up to (prior in use: '
           f'{prior}): median '
-          f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms)')
+          f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms){_on(cautious)}')
     for label, priors in ((f'{args.tables} tables like a library\'s', args.tables),
                           (args.library, args.library)):
         if not priors:
             continue
         for mixed in (False, True):
-            t, t_min, gaits, prior, horizon = bench_shipped(mixed=mixed, priors=priors)
+            t, t_min, gaits, prior, horizon, cautious = bench_shipped(mixed=mixed, priors=priors,
+                                                                      caution=args.caution)
             print(f'  the same with {label}, {"mixed" if mixed else "one table"} (prior in '
                   f'use: {prior}): median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms '
-                  '(target < 20 ms)')
+                  f'(target < 20 ms){_on(cautious)}')
     if args.toy_replicates < 1:
         return  # no toy experiment asked for
     with tempfile.TemporaryDirectory() as out:

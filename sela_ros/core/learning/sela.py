@@ -395,6 +395,14 @@ class SELA:
         sq_distance = (x - waypoint[0]) ** 2 + (y - waypoint[1]) ** 2
         reward = -(np.sqrt(sq_distance) if landing_var is None
                    else acquisition.expected_distance(sq_distance, landing_var))
+        nearer = None
+        if landing_var is not None and self.goal is not None and np.linalg.norm(
+                waypoint - self.goal) <= self.config.goal_eps:
+            # The step to the goal: a gait tried that barely moves would always seem surer
+            # than one that could land on the goal; only gaits predicted to bring the robot
+            # a goal.eps nearer are in the running, if any is allowed.
+            nearer = np.sqrt(sq_distance) <= np.linalg.norm(pose[:2] - waypoint) \
+                - self.config.goal_eps
         sigma = np.sqrt(var)
         scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
         risk = self._fall.risk(*fall_prior)
@@ -404,6 +412,8 @@ class SELA:
             if self.config.fall_risk_cost:
                 scores = scores - self.config.fall_risk_cost * risk
             scores = fall_risk.safe_choice(scores, risk, self.config.fall_risk_threshold)
+        if nearer is not None and (nearer & np.isfinite(scores)).any():
+            scores = np.where(nearer, scores, -np.inf)
         index = int(np.argmax(scores))
         if self.config.planner_horizon > 1 and second is not None \
                 and np.linalg.norm(second - waypoint) > 1e-6:
