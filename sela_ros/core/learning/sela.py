@@ -339,20 +339,27 @@ class SELA:
         if selection.mixture is not None:
             # The mixture's falls set the fall model's prior as a table's do; no chained runs:
             # those of the damages mixed mislead on another robot (docs/notebook.md).
-            mixture = selection.mixture
-            rates = mixture.fall_rates(self.priors.fallen)
-            mean = mixture.mean(self._prior, self.priors.generic_reward)
-            return (self._gp.mean_columns_with_prior(mean), var,
+            rates = selection.mixture.fall_rates(self.priors.fallen)
+            return (self._gp.mean_columns_with_prior(self._prior_mean(selection)), var,
                     (rates, self._fall.table_support(rates), None))
         if selection.index is None:
             return mu_t, var, ()
-        table = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
+        table = self._prior_mean(selection)
         fallen = self.priors.fallen[selection.index]
         if selection.index not in self._support:
             self._support[selection.index] = self._fall.table_support(fallen)
         return (self._gp.mean_columns_with_prior(table), var,
                 (fallen.astype(float), self._support[selection.index],
                  self.priors.chained(selection.index) if selection.reproduced else None))
+
+    def _prior_mean(self, selection):
+        """The ``(M, k)`` prior mean ``selection`` stands for: the tables mixed, one table,
+        or None for the intact map (the GPs' own)."""
+        if selection.mixture is not None:
+            return selection.mixture.mean(self._prior, self.priors.generic_reward)
+        if selection.index is None:
+            return None
+        return self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
 
     def predict(self):
         """Posterior over the archive: ``(mu (M, k), sigma (M,))`` (under the prior in use)."""
@@ -515,13 +522,7 @@ class SELA:
         mu_t, var = self._gp.query_columns()
         if var[index] <= acquisition.UNTRIED_VARIANCE:
             return
-        selection = self.select_prior()
-        if selection.mixture is not None:
-            prior = selection.mixture.mean(self._prior, self.priors.generic_reward)
-        elif selection.index is not None:
-            prior = self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
-        else:
-            prior = None
+        prior = self._prior_mean(self.select_prior())
         if prior is None:
             predicted = mu_t[:, index]
         else:
