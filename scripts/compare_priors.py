@@ -36,6 +36,7 @@ Runs are appended to ``--out`` (JSON lines) as they finish, and a rerun skips th
 from __future__ import annotations
 
 import argparse
+import functools
 import glob
 import json
 import os
@@ -238,6 +239,17 @@ def best_mixture(intact, tables, truth, rows, scale, signed=False):
     return intact + np.tensordot(weights, deviations, axes=1)
 
 
+@functools.lru_cache(maxsize=2)
+def _bound_sources(library_path):
+    """``(archive, shipped priors, library)``, loaded once per process."""
+    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.storage import default_archive_path, load_archive
+
+    archive = load_archive(default_archive_path())
+    return (archive, resolve_priors('auto', default_archive_path(), archive.params),
+            resolve_priors(library_path, default_archive_path(), archive.params))
+
+
 def bound_table(damage, method, library_path):
     """The prior mean of a bound method on ``damage`` (``(M, 3)``), or None when nothing of
     the damage is known (kept per process). ``bound-own``: the library's table of the
@@ -251,15 +263,11 @@ def bound_table(damage, method, library_path):
         sys.path.insert(0, str(ROOT / 'scripts'))
         import build_library
 
-        from sela_ros.core.learning import resolve_priors
         from sela_ros.core.learning.damage_priors import RESIDUAL_SCALE
-        from sela_ros.core.storage import default_archive_path, load_archive
         from sim_bridge.damage import parse_damage
 
-        archive = load_archive(default_archive_path())
+        archive, shipped, whole = _bound_sources(library_path)
         intact = archive.generic_reward[:, :3]
-        shipped = resolve_priors('auto', default_archive_path(), archive.params)
-        whole = resolve_priors(library_path, default_archive_path(), archive.params)
         known = build_library.known_outcomes(archive, damage, shipped=shipped)
         canonical = parse_damage(damage).canonical()
         own = [i for i, n in enumerate(whole.names) if parse_damage(n).canonical() == canonical]
