@@ -10,6 +10,8 @@ import time
 from pathlib import Path
 
 import rclpy
+from rcl_interfaces.srv import (DescribeParameters, GetParameters, GetParameterTypes,
+                                  ListParameters, SetParameters)
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -17,6 +19,12 @@ from rclpy.node import Node
 from sela_ros.tools.ros_env import executable, package_prefix, ros_environment, wait_for_publishers
 
 CONFIG = package_prefix() / 'share' / 'sela_ros' / 'config' / 'sela.yaml'
+
+# Requests that may be sent twice with the same effect, and how long to wait for an answer
+# before sending one again.
+_REPEATABLE = (DescribeParameters, GetParameters, GetParameterTypes, ListParameters,
+               SetParameters)
+_RESEND_AFTER = 5.0
 
 
 class NodeProcesses:
@@ -106,11 +114,28 @@ class Client:
             raise TimeoutError(f'timed out after {timeout} s waiting for publishers on '
                                f'{", ".join(topics)}')
 
-    def call(self, client, request, timeout=20.0):
+    def call(self, client, request, timeout=20.0, resend_after=None):
+        """The answer to ``request``, within ``timeout`` s from now.
+
+        A service can take a request before the writer of its replies has matched this
+        client, and the reply is then lost. A request that can be repeated (every parameter
+        service's; ``resend_after`` s for others) is sent again while no answer came."""
+        deadline = time.monotonic() + timeout
         self.spin_until(client.service_is_ready, timeout, f'service {client.srv_name}')
-        future = client.call_async(request)
-        self.spin_until(future.done, timeout, f'answer of {client.srv_name}')
-        return future.result()
+        if resend_after is None and client.srv_type in _REPEATABLE:
+            resend_after = _RESEND_AFTER
+        while True:
+            future = client.call_async(request)
+            left = deadline - time.monotonic()
+            wait = left if resend_after is None else min(resend_after, left)
+            try:
+                self.spin_until(future.done, max(wait, 0.0), f'answer of {client.srv_name}')
+                return future.result()
+            except TimeoutError:
+                client.remove_pending_request(future)
+                if time.monotonic() >= deadline:
+                    raise TimeoutError(f'timed out after {timeout} s waiting for the answer '
+                                       f'of {client.srv_name}') from None
 
     def close(self):
         self.executor.shutdown()
