@@ -14,7 +14,7 @@ PARAMETERS = (
     Spec('gp.noise', 0.001, 'GP noise variance', low=0.0, high=100.0, read_only=True),
     Spec('acquisition.ucb.alpha', 0.05, 'UCB exploration weight', low=0.0, high=100.0,
          read_only=True),
-    Spec('acquisition.caution', NONE, 'once untried gaits land '
+    Spec('acquisition.caution', SELAConfig.acquisition_caution, 'once untried gaits land '
          'this far from their predictions (rms per axis, learnt from the steps), each gait '
          'is scored by its expected distance to the waypoint, which prefers gaits already '
          "tried; none = never (the paper's: the predicted distance)", low=0.0, high=100.0,

@@ -36,6 +36,9 @@ def ucb(reward_mu, sigma, alpha: float = DEFAULT_ALPHA) -> int:
 # Caution (``acquisition.caution``): on a robot whose untried gaits land far from where the
 # map and priors say, a gait is scored by its expected distance to the waypoint instead of
 # its predicted one, so that gaits already tried, whose landing is known, are preferred.
+#: The default ``acquisition.caution`` (m): measured on 102 damages, 20 seeds each
+#: (docs/damage_library.md).
+DEFAULT_CAUTION = 0.15
 #: Error (m, per axis) of an untried gait's predicted landing before any step has shown it;
 #: it counts as one step's worth in :func:`learnt_error`.
 CAUTION_PRIOR_ERROR = 0.1

@@ -36,7 +36,7 @@ class SELAConfig:
     # from the steps: acquisition.learnt_error), each gait is scored by its expected distance
     # to the waypoint, which prefers gaits whose landing is known; None (none): never, the
     # predicted distance (the paper's).
-    acquisition_caution: float | None = None
+    acquisition_caution: float | None = acquisition.DEFAULT_CAUTION
     # m along the path to the waypoint of the reward (hexapod: docs/hexapod_results.md)
     planner_lookahead: float = 0.6
     # Steps looked ahead: 1, the paper's (the gait landing nearest the waypoint), or 2 (the

@@ -68,7 +68,9 @@ def test_auto_and_none_are_words_not_numbers():
     assert written['priors.max.misfit'] == 'none'
     assert SELAConfig.from_dict(written) == c
     assert SELAConfig().to_dict()['fall.kernel.sigma'] == 'auto'
-    assert SELAConfig().to_dict()['acquisition.caution'] == 'none'
+    assert SELAConfig().to_dict()['acquisition.caution'] == 0.15
+    assert SELAConfig.from_dict({'acquisition.caution': 'none'}).acquisition_caution is None
+    assert SELAConfig(acquisition_caution=None).to_dict()['acquisition.caution'] == 'none'
     assert SELAConfig.from_dict({'acquisition.caution': 0.15}).acquisition_caution == 0.15
     # A state file's 0 where none is meant reads as none.
     assert SELAConfig.from_dict({'priors.weights.sd': 0.0}).priors_weights_sd is None
