@@ -105,7 +105,9 @@ def toy_problem(world: ToyWorld, goal=(2.0, 2.0), max_steps: int = 100,
     return Problem(
         candidates=world.candidates, prior_gr=world.intact_generic_reward(),
         motion=PointMotion(), goal=np.asarray(goal, dtype=float), planner=GridPlanner(grid),
-        config=config or SELAConfig(planner_lookahead=step), max_steps=max_steps,
+        # The paper's rules: each gait by its predicted distance (no caution).
+        config=config or SELAConfig(planner_lookahead=step, acquisition_caution=None),
+        max_steps=max_steps,
         true_gr=world.damaged_generic_reward(),
         ite_targets=np.array([[0.0, step], [0.0, -step], [-step, 0.0], [step, 0.0]]),
         ite_max_iterations=10,
