@@ -6,10 +6,10 @@ the planner node's default map and the node's defaults): the PyBullet hexapod da
 the start, position observations with noise seeded as the ``sim_bridge`` node's ``seed``, a
 fallen robot righted where it lies. Methods:
 
-* ``select``: today's prior selection, one table or the intact map (``priors.weights.sd`` none);
+* ``select``: one table chosen, or the intact map (``priors.weights.sd`` none);
 * ``mixture``: the tables mixed by weights fitted to the steps (``priors.weights.sd`` 1);
-* ``caution``: the same, with ``acquisition.caution`` 0.15 m (every other method runs with
-  it none);
+* ``caution``: the same, with ``acquisition.caution`` 0.15 m: the node's defaults (every
+  other method runs with caution none, the paper's rule);
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
