@@ -9,7 +9,8 @@ fallen robot righted where it lies. Methods:
 * ``select``: one table chosen, or the intact map (``priors.weights.sd`` none);
 * ``mixture``: the tables mixed by weights fitted to the steps (``priors.weights.sd`` 1);
 * ``caution``: the same, with ``acquisition.caution`` 0.15 m: the node's defaults (every
-  other method runs with caution none, the paper's rule);
+  other method runs with caution none, the paper's rule); ``caution-0.1``, ``caution-0.2``,
+  ``caution-0.3``: other settings of it;
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -80,7 +81,9 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            'library': {'priors.weights.sd': 1.0}, 'library-own': {'priors.weights.sd': 1.0},
            'oracle': None, 'oracle-restricted': None, 'bound-own': None, 'bound-fit': None,
            'bound-fit-signed': None,
-           'caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15}}
+           'caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15},
+           **{f'caution-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': v}
+              for v in (0.1, 0.2, 0.3)}}
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
