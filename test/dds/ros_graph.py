@@ -114,16 +114,15 @@ class Client:
             raise TimeoutError(f'timed out after {timeout} s waiting for publishers on '
                                f'{", ".join(topics)}')
 
-    def call(self, client, request, timeout=20.0, resend_after=None):
+    def call(self, client, request, timeout=20.0):
         """The answer to ``request``, within ``timeout`` s from now.
 
         A service can take a request before the writer of its replies has matched this
         client, and the reply is then lost. A request that can be repeated (every parameter
-        service's; ``resend_after`` s for others) is sent again while no answer came."""
+        service's) is sent again every :data:`_RESEND_AFTER` s while no answer came."""
         deadline = time.monotonic() + timeout
         self.spin_until(client.service_is_ready, timeout, f'service {client.srv_name}')
-        if resend_after is None and client.srv_type in _REPEATABLE:
-            resend_after = _RESEND_AFTER
+        resend_after = _RESEND_AFTER if client.srv_type in _REPEATABLE else None
         while True:
             future = client.call_async(request)
             left = deadline - time.monotonic()
