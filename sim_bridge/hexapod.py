@@ -158,6 +158,10 @@ class Hexapod:
         finally:
             os.unlink(path)
         self.damage = spec
+        # The ground's friction is part of the damage (``friction:<coefficient>``).
+        p.changeDynamics(self._ground, -1, physicsClientId=cid,
+                         lateralFriction=GROUND_FRICTION if spec.friction is None
+                         else spec.friction)
         self._index_joints()
         for link in self._foot_links:
             if link >= 0:

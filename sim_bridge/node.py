@@ -55,7 +55,8 @@ IDLE_PERIOD = 0.1  # s (wall) between state messages while no gait runs
 PARAMETERS = (
     Spec('damage', 'remove:middle_right', 'what is broken; can change at run time: intact, '
          'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], '
-         'weaken:<leg>.<joint>[=torque share], comma-joined',
+         'weaken:<leg>.<joint>[=torque share], friction:<ground coefficient>, '
+         'payload:<kg>[@<x>,<y> m from the body centre], comma-joined',
          rule=damage_rule),
     Spec('sim.dt', 1.0 / 240.0, 'physics step; must match the archive', low=1e-4, high=0.05,
          unit=' s', read_only=True),
