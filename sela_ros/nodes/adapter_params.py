@@ -2,6 +2,7 @@
 they configure (SELA and the mission stepper). Declared through :func:`params.declare`."""
 from sela_ros.core.learning import AUTO, NONE, SELAConfig
 from sela_ros.core.mission import ON_DETECTION, StepperConfig
+from sela_ros.core.storage import persistence
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.params import Spec
 
@@ -63,7 +64,13 @@ PARAMETERS = (
          'trust the map until the damage detector fires)', read_only=True),
     Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
     Spec('state_file', '', "where learning is saved after every step ('' = "
-         '~/.ros/sela_ros/sela_adapter_state.json)', read_only=True),
+         '~/.ros/sela_ros/sela_adapter_state.json); a regular file or none yet (a symbolic '
+         'link is written through)', read_only=True,
+         rule=lambda value: persistence.path_problem(value) if value else None),
+    Spec('max_observations', StepperConfig.max_observations, 'observations (generic '
+         'rewards, falls) learning keeps over the robot\'s life, the latest: bounds the state '
+         'file, its start-up time and the memory (a tenth more before the oldest are '
+         'forgotten)', low=10, high=100000),
     Spec('resume', True, 'read the state file at start-up (lifelong learning)', read_only=True),
     Spec('reset_on_fall', StepperConfig.reset_on_fall, 'true: after a step that ends fallen, '
          'call sim_bridge/reset and go on from the start (episodic set-ups); false: go on '
@@ -94,7 +101,8 @@ SELA_NAMES = {'priors.max_misfit': 'priors.max.misfit',
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
-                'adaptation.on_detection': str, 'outcome.max_displacement': float}
+                'adaptation.on_detection': str, 'outcome.max_displacement': float,
+                'max_observations': int}
 # Parameter name -> StepperConfig field, where they differ.
 _FIELDS = {'adaptation.on_detection': 'on_detection',
            'outcome.max_displacement': 'max_displacement'}
