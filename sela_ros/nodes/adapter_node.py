@@ -218,7 +218,8 @@ class SelaAdapter(Node):
                 else:
                     self._use_archive(path, archive)
             elif self.stepper is not None:
-                self.stepper.configure(**params.stepper_change(param.name, param.value))
+                self.stepper.configure(**params.stepper_change(param.name, param.value,
+                                                               self.archive))
             self.values[param.name] = param.value
         return SetParametersResult(successful=True)
 

@@ -3,6 +3,7 @@ they configure (SELA and the mission stepper). Declared through :func:`params.de
 from sela_ros.core.learning import AUTO, NONE, SELAConfig
 from sela_ros.core.mission import ON_DETECTION, StepperConfig
 from sela_ros.core.storage import persistence
+from sela_ros.core.validation import archive_displacement_limit
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.params import Spec
 
@@ -81,9 +82,10 @@ PARAMETERS = (
          "('evidence'); a restart sets what it replaces aside in the state file",
          rule=lambda v: None if v in ON_DETECTION else f'must be one of {ON_DETECTION}',
          read_only=True),
-    Spec('outcome.max_displacement', StepperConfig.max_displacement, 'an outcome that moves '
-         'the robot further than this in one gait is refused, never learnt', low=1e-3,
-         high=1e6, unit=' m'),
+    Spec('outcome.max_displacement', AUTO, 'an outcome that moves the robot further than this '
+         "in one gait is refused, never learnt; auto = twice the archive's furthest gait "
+         '(1.25 m on the shipped 8-D map)', low=1e-3, high=1e6, unit=' m', kind='double',
+         word=AUTO),
     Spec('simulator_node', ifc.SIM_BRIDGE, "whose sim.dt, sim.gait_duration and "
          "sim.solver_iterations the archive must match ('' on a real robot: no check)",
          read_only=True),
@@ -118,11 +120,22 @@ def stepper_fields():
     return {k: _FIELDS.get(k, k) for k in STEPPER_KEYS}
 
 
-def stepper_config(values):
+def stepper_config(values, archive=None):
+    """The stepper's configuration from the node's ``values`` (``auto`` ones: ``archive``'s)."""
     fields = stepper_fields()
-    return StepperConfig(**{fields[k]: t(values[k]) for k, t in STEPPER_KEYS.items()})
+    return StepperConfig(**{fields[k]: t(_resolved(k, values[k], archive))
+                            for k, t in STEPPER_KEYS.items()})
 
 
-def stepper_change(name, value):
+def stepper_change(name, value, archive=None):
     """``{field: value}`` for :meth:`MissionStepper.configure` ({} if not a stepper's)."""
-    return {_FIELDS.get(name, name): STEPPER_KEYS[name](value)} if name in STEPPER_KEYS else {}
+    if name not in STEPPER_KEYS:
+        return {}
+    return {_FIELDS.get(name, name): STEPPER_KEYS[name](_resolved(name, value, archive))}
+
+
+def _resolved(name, value, archive):
+    if name == 'outcome.max_displacement' and value == AUTO:
+        return (StepperConfig.max_displacement if archive is None
+                else archive_displacement_limit(archive.generic_reward))
+    return value
