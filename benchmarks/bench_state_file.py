@@ -60,8 +60,9 @@ def take_back(path, archive, values, priors):
         stepper.restore(state, 0.0)
         restored['stepper'] = stepper
 
-    _, problem = persistence.resume_state(
-        path, len(archive), restore, limits=OutcomeLimits(values['outcome.max_displacement']))
+    limit = adapter_params.stepper_config(values, archive).max_displacement
+    _, problem = persistence.resume_state(path, len(archive), restore,
+                                          limits=OutcomeLimits(limit))
     if problem:
         raise SystemExit(problem)
     return restored['stepper']
