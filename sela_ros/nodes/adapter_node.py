@@ -155,12 +155,15 @@ class SelaAdapter(Node):
                 if command is not None:
                     self.feed(self._planner_lost(command))
             self._asked_plan = self._deferred_plan = None
-        elif name == ifc.DAMAGE_DETECTOR and self.stepper is not None \
-                and not self.stepper.logic.adapting:
-            # No damage can be detected any more: learn from every outcome, as a detection
-            # would have it.
-            self.report(io.Level.WARN, f'{name} lost: no verdicts, adapting from every '
-                        'outcome')
+
+    def _adapt_without_detector(self):
+        """No damage can be detected while the detector is lost: learn from every outcome,
+        as a detection would have it (also after a ``~/clear`` meanwhile)."""
+        if (self.liveness.lost(ifc.DAMAGE_DETECTOR) and self.stepper is not None
+                and not self.stepper.logic.adapting
+                and not self.stepper.adapt_after_outcome):
+            self.report(io.Level.WARN, f'{ifc.DAMAGE_DETECTOR} lost: no verdicts, adapting '
+                        'from every outcome')
             self.feed(io.AdaptRequested())
 
     def _planner_lost(self, command):
@@ -169,7 +172,10 @@ class SelaAdapter(Node):
 
     @guard
     def _say_liveness(self, only=None):
-        """The state of a watched node that was lost (ERROR while it is, every second)."""
+        """Every second, as diagnostics are read (a monitor that starts late still sees
+        it): the detector's state (no one else watches it), and the planner's while it is
+        lost (the detector says it too); ``only``: that node's, now."""
+        self._adapt_without_detector()
         statuses = []
         for name in (ifc.PLANNER, ifc.DAMAGE_DETECTOR):
             if only not in (None, name) or name not in self.liveness.watch.seen:
@@ -180,7 +186,7 @@ class SelaAdapter(Node):
                     message += ': no verdicts, missions adapt from every outcome'
                 statuses.append(conv.diagnostic_status(conv.diagnostic_level(io.Level.ERROR),
                                                        f'{name}: liveness', message))
-            elif only is not None:
+            elif only is not None or name == ifc.DAMAGE_DETECTOR:
                 statuses.append(conv.diagnostic_status(conv.diagnostic_level(io.Level.OK),
                                                        f'{name}: liveness',
                                                        f'{name} alive (liveliness)'))

@@ -3,6 +3,7 @@ import signal
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
+from std_srvs.srv import Trigger
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
@@ -135,6 +136,11 @@ def test_a_killed_detector_is_reported_by_the_adapter_which_then_adapts_from_eve
             log = (nodes.logdir / 'sela_adapter.log').read_text()
             return 'adapting from every outcome' in log and 'adaptation started' in log
         client.spin_until(adapting, 30, 'the adapter adapting without verdicts')
+        # Learning forgotten (~/clear) while the detector is still lost: adapting again.
+        cleared = client.call(ifc.client(client.node, ifc.CLEAR), Trigger.Request())
+        assert cleared.success, cleared.message
+        client.spin_until(lambda: (nodes.logdir / 'sela_adapter.log').read_text().count(
+            'adapting from every outcome') >= 2, 30, 'adapting again after the clear')
         # Said again while it lasts, as diagnostics are read.
         heard = len(statuses)
         client.spin_until(lambda: _errors(statuses[heard:], 'damage_detector silent'), 30,
