@@ -55,6 +55,10 @@ def main():
     parser.add_argument('--replicates', type=int, default=4)
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--archive', default=str(default_archive_path()))
+    parser.add_argument('--max-steps', type=int, default=None,
+                        help="steps per mission (default: the experiment's)")
+    parser.add_argument('--methods', default=None,
+                        help="comma-separated methods (default: the experiment's)")
     parser.add_argument('--from-results', default=None,
                         help='report a finished run instead of running one')
     args = parser.parse_args()
@@ -68,7 +72,9 @@ def main():
         start = time.perf_counter()
         cli_main(['hexapod', '--replicates', str(args.replicates), '--workers',
                   str(args.workers), '--archive', args.archive, '--out', out, '--quiet',
-                  '--oracle-cache', os.path.join(out, 'cache')])
+                  '--oracle-cache', os.path.join(out, 'cache')]
+                 + ([] if args.max_steps is None else ['--max-steps', str(args.max_steps)])
+                 + ([] if args.methods is None else ['--methods', args.methods]))
         wall = time.perf_counter() - start
         with open(os.path.join(out, 'results.json')) as f:
             doc = json.load(f)

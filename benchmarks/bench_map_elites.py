@@ -56,8 +56,10 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument('--gaits', type=int, default=40)
     parser.add_argument('--workers', type=int, default=os.cpu_count() or 1)
+    parser.add_argument('--evals', type=int, default=20000,
+                        help='evaluations of the synthetic run')
     args = parser.parse_args()
-    bench_overhead()
+    bench_overhead(args.evals)
     bench_hexapod(args.gaits, args.workers)
 
 

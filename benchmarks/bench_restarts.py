@@ -73,7 +73,8 @@ class Mission:
                                 self.archive.params)
         self.stepper = MissionStepper(
             make_sela(self.archive, adapter_params.sela_config(adapter), priors=priors),
-            replace(adapter_params.stepper_config(adapter), max_steps=max_steps, **stepper))
+            replace(adapter_params.stepper_config(adapter, self.archive), max_steps=max_steps,
+                    **stepper))
         self.detector = DamageDetector(DetectorConfig(**{
             k.split('.', 1)[1]: v for k, v in detector.items() if k.startswith('detection.')}))
         self.steps = 0

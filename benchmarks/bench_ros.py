@@ -83,13 +83,46 @@ def dds_mission(goal, seed, damage, overrides=None, steps_wanted=None, timeout=1
     return times, memory, None if result is None else result.values
 
 
+def in_process_mission(damage, seed, goal, on_step=None):
+    """The mission the four nodes run, in one process (no DDS): config/sela.yaml's settings
+    through the node's stepper (:func:`sela_ros.core.mission.run_mission`), the simulator
+    with sim_bridge's noise and seed, the planner's map; returns ``(success, logic)``."""
+    from sela_ros.core.detection import DetectorConfig
+    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.mission import make_sela, run_mission
+    from sela_ros.core.planning import GridPlanner, grid_from_description
+    from sela_ros.core.storage import load_archive, resolve_archive_path
+    from sela_ros.nodes import adapter_params
+    from sim_bridge.experiment_env import HexapodEnvironment
+
+    cfg = {k.removeprefix('/**/'): v['ros__parameters']
+           for k, v in yaml.safe_load(Path(CONFIG).read_text()).items()}
+    bridge, plan, detector = cfg['sim_bridge'], cfg['planner'], cfg['damage_detector']
+    adapter = {spec.name: spec.default for spec in adapter_params.PARAMETERS}
+    adapter.update(cfg['sela_adapter'])
+    path = resolve_archive_path(adapter['archive'])
+    archive = load_archive(path)
+    priors = resolve_priors(adapter['priors.tables'], path, archive.params)
+    grid = grid_from_description(plan['map.resolution'], plan['map.origin'], plan['map.width'],
+                                 plan['map.height'], plan.get('map.obstacles') or [])
+    physics = archive.simulator_settings
+    with HexapodEnvironment(archive.params, damage, bridge['observation.noise_std'], seed=seed,
+                            dt=physics['dt'], gait_duration=physics['gait_duration'],
+                            solver_iterations=physics['solver_iterations']) as env:
+        run = run_mission(
+            env, make_sela(archive, adapter_params.sela_config(adapter), priors=priors), [goal],
+            GridPlanner(grid, inflation=plan['planner.inflation']),
+            detector_config=DetectorConfig(**{k.split('.', 1)[1]: v for k, v in detector.items()
+                                              if k.startswith('detection.')}),
+            stepper_config=adapter_params.stepper_config(adapter, archive), on_step=on_step)
+    return run.success, run.logic
+
+
 def in_process(goal, seed, damage):
     """The same mission in process; returns the step times as the DDS run measures them."""
-    from test_ros_mission import _in_process_mission
-
     stamps = []
-    success, logic = _in_process_mission(damage, seed, goal,
-                                         on_step=lambda record: stamps.append(time.monotonic()))
+    success, logic = in_process_mission(damage, seed, goal,
+                                        on_step=lambda record: stamps.append(time.monotonic()))
     return stamps, success, logic
 
 
@@ -136,14 +169,14 @@ def overhead(args):
         all_same &= same
         proc = (per_step(before['stamps']) + per_step(after)) / 2
         dds = per_step([t for t, _ in times])
-        ratios.append(dds / proc)
+        ratios.append(dds / proc if proc else float('nan'))
         dds_all.extend(v for _, v in times)
         dds_steps.append(intervals([t for t, _ in times]))
         proc_steps += [intervals(before['stamps']), intervals(after)]
         print(f'round {r + 1}: {len(logic.records)} steps in process, {len(times)} over DDS, '
               f'same decisions: {same}; in process {per_step(before["stamps"]) * 1e3:.1f} / '
               f'{per_step(after) * 1e3:.1f} ms per step (before / after), over DDS '
-              f'{dds * 1e3:.1f} ms: {(dds / proc - 1) * 100:+.1f}%', flush=True)
+              f'{dds * 1e3:.1f} ms: {(ratios[-1] - 1) * 100:+.1f}%', flush=True)
         if args.verbose:
             print('  per step over DDS (ms), outcome -> command / command -> outcome: ' +
                   ' '.join(f"{v['decide_ms']}/{v['execute_ms']}" for _, v in times))
@@ -158,8 +191,8 @@ def overhead(args):
     print('per round (mean step over DDS / mean step in process): ' +
           ' '.join(f'{(q - 1) * 100:+.1f}%' for q in ratios) +
           f'; median {(ratios[len(ratios) // 2] - 1) * 100:+.1f}%')
-    if all_same:
-        n = min(len(x) for x in dds_steps + proc_steps)
+    n = min(len(x) for x in dds_steps + proc_steps)
+    if all_same and n:
         best_dds = sum(min(x[k] for x in dds_steps) for k in range(n)) / n
         best_proc = sum(min(x[k] for x in proc_steps) for k in range(n)) / n
         print(f'best of {args.rounds} rounds, step by step: in process {best_proc * 1e3:.1f} ms '
@@ -167,19 +200,25 @@ def overhead(args):
         print(f'ROS overhead per step: {(best_dds / best_proc - 1) * 100:+.1f}% '
               '(target: at most +10%)')
     else:
-        print('ROS overhead per step: not computed, the runs did not take the same gaits')
+        print('ROS overhead per step: not computed, ' + (
+            'the runs did not take the same gaits' if not all_same
+            else 'fewer than two steps per run'))
 
 
 def long_run(args):
     config = yaml.safe_load(Path(CONFIG).read_text())['/**/planner']['ros__parameters']
-    # A goal in the middle of the map that can never be reached (goal.eps 1 mm): the robot
-    # walks to it and keeps stepping around it without leaving the map.
+    # A goal 1 m from the middle of the map (where the robot starts: a goal there would be
+    # reached at once) that can never be reached (goal.eps 1 mm): the robot walks to it and
+    # keeps stepping around it without leaving the map.
     centre = [o + size / 2 for o, size in zip(config['map.origin'],
                                                (config['map.width'], config['map.height']))]
+    centre[0] += 1.0
     overrides = {'sela_adapter': {'max_steps': args.steps + 5, 'goal.eps': 0.001}}
-    times, memory, _ = dds_mission(centre, args.seed, args.damage, overrides,
-                                   steps_wanted=args.steps, timeout=600)
-    k = min(10, len(times) // 4)
+    times, memory, final = dds_mission(centre, args.seed, args.damage, overrides,
+                                       steps_wanted=args.steps, timeout=600)
+    if len(times) < 2:
+        raise SystemExit(f'{len(times)} step(s) over DDS: the mission ended ({final})')
+    k = max(1, min(10, len(times) // 4))
     first = (times[k][0] - times[0][0]) / k
     last = (times[-1][0] - times[-1 - k][0]) / k
     print(f'{len(times)} consecutive gaits over DDS, damage {args.damage}')

@@ -21,6 +21,11 @@ BENCHMARKS = {
     'bench_hexapod': [],
     'bench_map_elites': [],
     'bench_hexapod_experiment': [],
+    'bench_physics': [],
+    'bench_planning': [],
+    'bench_detection_policy': [],
+    'bench_restarts': [],
+    'bench_state_file': [],
     'bench_ros overhead': ['overhead'],
     'bench_ros long': ['long'],
 }

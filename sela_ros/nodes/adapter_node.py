@@ -10,6 +10,7 @@ and verdicts (``damage_detector/verdict``) pair with the command by id. ``~/adap
 the mission stands go to ``state_file`` after every step and come back at start-up
 (``resume``); archive and state file handling is in :mod:`sela_ros.nodes.adapter_support`.
 """
+import math
 from collections import deque
 
 from nav_msgs.srv import GetPlan
@@ -30,7 +31,7 @@ from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.adapter_actions import MissionActions
 from sela_ros.nodes.guard import guard, guard_parameters, guard_service
-from sela_ros.nodes.heartbeat import add_heartbeat
+from sela_ros.nodes.heartbeat import LivenessMonitor, add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import declare
 from sela_ros.nodes.sim_check import SimulatorCheck
@@ -55,6 +56,7 @@ class SelaAdapter(Node):
             persistence.default_state_file()), on_released=self._saved.trigger)
         self._events, self._feeding, self._reply = deque(), False, None
         self._deferred_plan = None  # a plan request waiting for the planner to come up
+        self._asked_plan = None  # the latest plan request sent to the planner
         self._result = None  # the last mission's result status, and when it was said
         self.pubs = {kind: ifc.publisher(self, topic) for kind, topic in (
             ('behavior', ifc.BEHAVIOR), ('prediction', ifc.PREDICTION),
@@ -81,6 +83,11 @@ class SelaAdapter(Node):
             io.ClearRequested(), 'no archive loaded: nothing to clear', a))
         # navigate_to_pose and follow_waypoints: the same missions, as nav2's actions.
         self.actions = MissionActions(self)
+        # The planner and the detector, watched through their own liveliness writers: a lost
+        # planner ends the mission (no plan can come), a lost detector is reported and
+        # adaptation runs without its verdicts.
+        self.liveness = LivenessMonitor(self, (ifc.PLANNER, ifc.DAMAGE_DETECTOR), math.inf,
+                                        self._liveness_changed)
         add_heartbeat(self)
         try:
             self._use_archive(self.values['archive'])
@@ -90,6 +97,7 @@ class SelaAdapter(Node):
             if self.values['resume']:
                 self._resume()
         self.create_timer(TICK_PERIOD, self.tick, clock=self.wall)
+        self.create_timer(RESULT_PERIOD, self._say_liveness, clock=self.wall)
 
     # --- inputs -> events ----------------------------------------------------------------
 
@@ -126,11 +134,65 @@ class SelaAdapter(Node):
     @guard
     def tick(self):
         self.sim_check.poll()
+        self.liveness.poll()
         if self._deferred_plan is not None and self.plan_client.service_is_ready():
             command, self._deferred_plan = self._deferred_plan, None
             self._request_plan(command)
         self.feed(io.Tick())
         self._repeat_result()
+
+    def _liveness_changed(self, name, change):
+        if change == 'alive':
+            self.get_logger().info(f'{name} alive')
+            self._say_liveness(name)
+            return
+        self.get_logger().error(self.liveness.watch.why(name))
+        self._say_liveness(name)
+        if name == ifc.PLANNER:
+            # The plan asked (or about to be) can never come: the mission ends now, with
+            # the reason, instead of after its plan requests' time-outs.
+            for command in (self._asked_plan, self._deferred_plan):
+                if command is not None:
+                    self.feed(self._planner_lost(command))
+            self._asked_plan = self._deferred_plan = None
+
+    def _adapt_without_detector(self):
+        """No damage can be detected while the detector is lost: learn from every outcome,
+        as a detection would have it (also after a ``~/clear`` meanwhile)."""
+        if (self.liveness.lost(ifc.DAMAGE_DETECTOR) and self.stepper is not None
+                and not self.stepper.logic.adapting
+                and not self.stepper.adapt_after_outcome):
+            self.report(io.Level.WARN, f'{ifc.DAMAGE_DETECTOR} lost: no verdicts, adapting '
+                        'from every outcome')
+            self.feed(io.AdaptRequested())
+
+    def _planner_lost(self, command):
+        return io.PlanReceived(command.step, tuple(command.start), reason=(
+            f'the planner is lost ({self.liveness.watch.why(ifc.PLANNER)})'))
+
+    @guard
+    def _say_liveness(self, only=None):
+        """Every second, as diagnostics are read (a monitor that starts late still sees
+        it): the detector's state (no one else watches it), and the planner's while it is
+        lost (the detector says it too); ``only``: that node's, now."""
+        self._adapt_without_detector()
+        statuses = []
+        for name in (ifc.PLANNER, ifc.DAMAGE_DETECTOR):
+            if only not in (None, name) or name not in self.liveness.watch.seen:
+                continue
+            if self.liveness.lost(name):
+                message = self.liveness.watch.why(name)
+                if name == ifc.DAMAGE_DETECTOR:
+                    message += ': no verdicts, missions adapt from every outcome'
+                statuses.append(conv.diagnostic_status(conv.diagnostic_level(io.Level.ERROR),
+                                                       f'{name}: liveness', message))
+            elif only is not None or name == ifc.DAMAGE_DETECTOR:
+                statuses.append(conv.diagnostic_status(conv.diagnostic_level(io.Level.OK),
+                                                       f'{name}: liveness',
+                                                       f'{name} alive (liveliness)'))
+        if statuses:
+            self.pubs['diagnostics'].publish(conv.diagnostic_array(
+                statuses, self.get_clock().now().to_msg()))
 
     def _repeat_result(self):
         """While idle after a mission, its result is said again every second, as
@@ -162,7 +224,8 @@ class SelaAdapter(Node):
                 else:
                     self._use_archive(path, archive)
             elif self.stepper is not None:
-                self.stepper.configure(**params.stepper_change(param.name, param.value))
+                self.stepper.configure(**params.stepper_change(param.name, param.value,
+                                                               self.archive))
             self.values[param.name] = param.value
         return SetParametersResult(successful=True)
 
@@ -292,12 +355,16 @@ class SelaAdapter(Node):
             self.markers.decision(c)
 
     def _request_plan(self, command):
+        if self.liveness.lost(ifc.PLANNER):
+            self.feed(self._planner_lost(command))
+            return
         if not self.plan_client.service_is_ready():
             self._deferred_plan = command  # sent by the timer once the planner is up
             return
         request = GetPlan.Request(
             start=conv.pose_stamped(command.start[:2], command.start[2], frame_id=self.frame_id),
             goal=conv.pose_stamped(command.goal, 0.0, frame_id=self.frame_id))
+        self._asked_plan = command
         self._call(self.plan_client, request,
                    lambda answer: adapter_support.plan_event(answer, command, self.map))
 

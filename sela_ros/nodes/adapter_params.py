@@ -2,6 +2,8 @@
 they configure (SELA and the mission stepper). Declared through :func:`params.declare`."""
 from sela_ros.core.learning import AUTO, NONE, SELAConfig
 from sela_ros.core.mission import ON_DETECTION, StepperConfig
+from sela_ros.core.storage import persistence
+from sela_ros.core.validation import archive_displacement_limit
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.params import Spec
 
@@ -63,7 +65,13 @@ PARAMETERS = (
          'trust the map until the damage detector fires)', read_only=True),
     Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
     Spec('state_file', '', "where learning is saved after every step ('' = "
-         '~/.ros/sela_ros/sela_adapter_state.json)', read_only=True),
+         '~/.ros/sela_ros/sela_adapter_state.json); a regular file or none yet (a symbolic '
+         'link is written through)', read_only=True,
+         rule=lambda value: persistence.path_problem(value) if value else None),
+    Spec('max_observations', StepperConfig.max_observations, 'observations (generic '
+         'rewards, falls) learning keeps over the robot\'s life, the latest: bounds the state '
+         'file, its start-up time and the memory (a tenth more before the oldest are '
+         'forgotten)', low=10, high=100000),
     Spec('resume', True, 'read the state file at start-up (lifelong learning)', read_only=True),
     Spec('reset_on_fall', StepperConfig.reset_on_fall, 'true: after a step that ends fallen, '
          'call sim_bridge/reset and go on from the start (episodic set-ups); false: go on '
@@ -74,9 +82,10 @@ PARAMETERS = (
          "('evidence'); a restart sets what it replaces aside in the state file",
          rule=lambda v: None if v in ON_DETECTION else f'must be one of {ON_DETECTION}',
          read_only=True),
-    Spec('outcome.max_displacement', StepperConfig.max_displacement, 'an outcome that moves '
-         'the robot further than this in one gait is refused, never learnt', low=1e-3,
-         high=1e6, unit=' m'),
+    Spec('outcome.max_displacement', AUTO, 'an outcome that moves the robot further than this '
+         "in one gait is refused, never learnt; auto = twice the archive's furthest gait "
+         '(1.25 m on the shipped 8-D map)', low=1e-3, high=1e6, unit=' m', kind='double',
+         word=AUTO),
     Spec('simulator_node', ifc.SIM_BRIDGE, "whose sim.dt, sim.gait_duration and "
          "sim.solver_iterations the archive must match ('' on a real robot: no check)",
          read_only=True),
@@ -94,7 +103,8 @@ SELA_NAMES = {'priors.max_misfit': 'priors.max.misfit',
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
-                'adaptation.on_detection': str, 'outcome.max_displacement': float}
+                'adaptation.on_detection': str, 'outcome.max_displacement': float,
+                'max_observations': int}
 # Parameter name -> StepperConfig field, where they differ.
 _FIELDS = {'adaptation.on_detection': 'on_detection',
            'outcome.max_displacement': 'max_displacement'}
@@ -110,11 +120,22 @@ def stepper_fields():
     return {k: _FIELDS.get(k, k) for k in STEPPER_KEYS}
 
 
-def stepper_config(values):
+def stepper_config(values, archive=None):
+    """The stepper's configuration from the node's ``values`` (``auto`` ones: ``archive``'s)."""
     fields = stepper_fields()
-    return StepperConfig(**{fields[k]: t(values[k]) for k, t in STEPPER_KEYS.items()})
+    return StepperConfig(**{fields[k]: t(_resolved(k, values[k], archive))
+                            for k, t in STEPPER_KEYS.items()})
 
 
-def stepper_change(name, value):
+def stepper_change(name, value, archive=None):
     """``{field: value}`` for :meth:`MissionStepper.configure` ({} if not a stepper's)."""
-    return {_FIELDS.get(name, name): STEPPER_KEYS[name](value)} if name in STEPPER_KEYS else {}
+    if name not in STEPPER_KEYS:
+        return {}
+    return {_FIELDS.get(name, name): STEPPER_KEYS[name](_resolved(name, value, archive))}
+
+
+def _resolved(name, value, archive):
+    if name == 'outcome.max_displacement' and value == AUTO:
+        return (StepperConfig.max_displacement if archive is None
+                else archive_displacement_limit(archive.generic_reward))
+    return value

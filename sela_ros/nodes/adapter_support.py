@@ -31,7 +31,7 @@ def new_stepper(values, archive, priors, next_id=1):
     """A stepper over ``archive`` with the node's parameter ``values``; command ids from
     ``next_id`` (they stay unique across archives)."""
     return MissionStepper(make_sela(archive, params.sela_config(values), priors=priors),
-                          params.stepper_config(values), next_id=next_id)
+                          params.stepper_config(values, archive), next_id=next_id)
 
 
 def carried_over(old):

@@ -7,12 +7,9 @@ on ``~/verdict`` (``/damage_detector/verdict``): the adapter waits for it, and a
 says damage was detected. The same verdict goes to ``diagnostics`` (name ``damage_detector:
 prediction error``; level ERROR when damage is detected) for whoever monitors the robot.
 """
-import functools
-
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 
 from sela_ros.core.detection import DamageDetector, DetectorConfig
@@ -20,7 +17,7 @@ from sela_ros.core.validation import ImplausibleOutcome, OutcomeLimits, check_ou
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard, guard_parameters
-from sela_ros.nodes.heartbeat import LivenessWatch, add_heartbeat
+from sela_ros.nodes.heartbeat import LivenessMonitor, add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 
@@ -68,19 +65,14 @@ class DamageDetectorNode(Node):
         ifc.subscription(self, ifc.OUTCOME, self.outcome_callback)
         # Watch the other nodes' liveliness (the middleware's): a lost node is reported.
         watched = [n for n in values['heartbeat.nodes'] if n in ifc.ALIVE]
-        self.watch = LivenessWatch(watched, values['heartbeat.timeout'])
-        self._liveliness = [ifc.subscription(
-            self, ifc.ALIVE[n], lambda _msg: None, event_callbacks=SubscriptionEventCallbacks(
-                liveliness=functools.partial(self.liveliness_callback, n)))
-            for n in watched]
+        self.liveness = LivenessMonitor(self, watched, values['heartbeat.timeout'],
+                                        self.liveliness_callback)
+        self.watch = self.liveness.watch
         self.create_timer(0.5, self.check_heartbeats, clock=self.wall)
         add_heartbeat(self)
         self.get_logger().info(f'threshold {self.detector.config.threshold} m')
 
-    @guard
-    def liveliness_callback(self, node, info):
-        change = self.watch.changed(node, info.alive_count, info.alive_count_change,
-                                    info.not_alive_count_change)
+    def liveliness_callback(self, node, change):
         if change == 'lost':
             self.get_logger().error(self.watch.why(node))
             self._publish_liveness(node, DiagnosticStatus.ERROR, self.watch.why(node))
@@ -95,6 +87,7 @@ class DamageDetectorNode(Node):
 
     @guard
     def check_heartbeats(self):
+        self.liveness.poll()
         newly_silent, back = self.watch.check()
         # Every watched node's state at every check, as diagnostics are meant to be read (a
         # monitor that starts late still sees it); a node still starting up is not said.

@@ -6,6 +6,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
 
+from sela_ros.core.planning import MapError, check_geometry
 from sela_ros.core.validation import finite_array
 from sela_ros.nodes.conversions import MessageError, quaternion_to_yaw, time_to_msg
 
@@ -39,6 +40,11 @@ def occupancy_values_from_msg(msg):
         raise MessageError(f'occupancy grid: resolution {msg.info.resolution} must be > 0')
     origin = finite_array([msg.info.origin.position.x, msg.info.origin.position.y],
                           'occupancy grid origin', 2, error=MessageError)
+    try:  # the limits of the map.* parameters and of map files
+        check_geometry(msg.info.resolution, origin, w * msg.info.resolution,
+                       h * msg.info.resolution, 'occupancy grid:')
+    except MapError as exc:
+        raise MessageError(str(exc)) from None
     yaw = quaternion_to_yaw(msg.info.origin.orientation)
     if not abs(yaw) < 1e-6:
         raise MessageError(f'occupancy grid: origin yaw {yaw:.4f} rad is not supported '

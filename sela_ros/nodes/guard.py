@@ -14,11 +14,13 @@ callback of a node is decorated with one of these; an exception becomes an ERROR
   error as the reason (nothing is applied: a callback validates before it applies).
 """
 import functools
+import time
 import traceback
 import weakref
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
+from rosgraph_msgs.msg import Clock as ClockMsg
 
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
@@ -97,6 +99,58 @@ guard_service = _decorator(_failed_response, 'Decorate a service callback '
                            '``(self, request, response)``.')
 guard_parameters = _decorator(_refused, 'Decorate an on-set-parameters callback '
                               '``(self, params)``.')
+
+
+#: s (wall): how often refused ``/clock`` messages are said again, with their count.
+CLOCK_REFUSAL_PERIOD = 60.0
+
+
+def clock_problem(msg):
+    """What makes a ``rosgraph_msgs/Clock`` unusable as sim time, or None."""
+    sec, nanosec = msg.clock.sec, msg.clock.nanosec
+    if sec < 0:
+        return f'negative seconds ({sec})'
+    if nanosec >= 1_000_000_000:
+        return f'nanoseconds {nanosec} >= 1e9'
+    return None
+
+
+def guard_clock(node):
+    """Refuse ``/clock`` messages rclpy's time source cannot take (``use_sim_time``).
+
+    rclpy's own ``/clock`` subscription raises on a negative time, once per message, out of
+    reach of the decorators above. Its callback is wrapped here (now, and whenever
+    ``use_sim_time`` turns it on): a bad message is dropped (sim time keeps its last value)
+    with one log line, and further ones are counted and said at most every
+    :data:`CLOCK_REFUSAL_PERIOD` s."""
+    said = {'at': -float('inf'), 'count': 0}
+
+    def refuse(problem):
+        said['count'] += 1
+        now = time.monotonic()
+        if now - said['at'] < CLOCK_REFUSAL_PERIOD:
+            return
+        node.get_logger().error(
+            f'/clock refused: {problem}; sim time keeps its last value ({said["count"]} '
+            f'refused so far, said at most every {CLOCK_REFUSAL_PERIOD:g} s)')
+        said['at'] = now
+
+    def wrap(*_):
+        for sub in node.subscriptions:
+            if sub.msg_type is not ClockMsg or getattr(sub.callback, 'clock_guarded', False):
+                continue
+
+            def guarded(msg, inner=sub.callback):
+                problem = clock_problem(msg)
+                if problem:
+                    refuse(problem)
+                else:
+                    inner(msg)
+            guarded.clock_guarded = True
+            sub.callback = guarded
+
+    wrap()
+    node.add_post_set_parameters_callback(wrap)
 
 
 def spin_guarded(executor, node, stop=None, period=None):

@@ -10,14 +10,17 @@ death of any writer is an event that is reported. The ``<node>: heartbeat`` stat
 ``diagnostics`` stay, for monitors (a node's lasting problem is said in them); nothing
 decides on them.
 """
+import functools
 import time
 import weakref
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 
 from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
+from sela_ros.nodes.guard import report_exception
 
 SUFFIX = ifc.HEARTBEAT_SUFFIX
 
@@ -54,8 +57,14 @@ class LivenessWatch:
     """Which watched nodes are alive, from liveliness-changed events (ROS-free bookkeeping).
 
     A node is *lost* from the event that one of its writers lost its liveliness until a
-    writer of it becomes alive again (a restarted node); a node never seen alive is *silent*
-    once ``grace`` seconds have passed since the watch started (start-up is not an alarm).
+    writer of the node's own, one that was not there when it was lost, is alive (a
+    restarted node); a node never seen alive is *silent* once ``grace`` seconds have
+    passed since the watch started (start-up is not an alarm).
+
+    Whose a writer is comes from the graph: the caller passes ``writers``, the ids of the
+    writers on the node's topic that belong to a node of that name (None: unknown, every
+    alive writer counts). A writer of someone else's, or one of the node's that was there
+    when it was lost, never makes it alive: only the watched node, started again, can.
     """
 
     def __init__(self, nodes, grace, now=None):
@@ -65,15 +74,18 @@ class LivenessWatch:
         self.seen = set()  # nodes seen alive at least once
         self.lost = {}  # node -> when it was lost
         self.silent = set()
+        self.own = {n: set() for n in nodes}  # the node's writers it was last seen alive with
+        self.dead = {n: set() for n in nodes}  # its writers that were there when it was lost
 
     def set_grace(self, seconds) -> None:
         """How long a node may stay unseen after the watch started (``heartbeat.timeout``)."""
         self.grace = float(seconds)
 
-    def changed(self, node, alive_count, alive_change, not_alive_change=0, now=None):
+    def changed(self, node, alive_count, alive_change, not_alive_change=0, now=None,
+                writers=None):
         """A liveliness-changed event on ``node``'s topic (its alive count, and the changes
-        of the alive and not-alive counts since the last event); returns 'lost', 'alive' or
-        None (nothing to report)."""
+        of the alive and not-alive counts since the last event; ``writers``: see the class);
+        returns 'lost', 'alive' or None (nothing to report)."""
         now = time.monotonic() if now is None else now
         before, self.alive[node] = self.alive[node], int(alive_count)
         # Changes are summed between two reads: a writer lost while another appeared shows
@@ -81,15 +93,33 @@ class LivenessWatch:
         if alive_change < 0 or not_alive_change > 0 or alive_count < before:
             # One of its writers died: reported even while another writer (a restarted
             # node not yet gone from the graph, or someone else's) is still alive.
+            if node not in self.lost:
+                self.dead[node] |= self.own[node]
             self.lost[node] = now
             return 'lost'
-        if alive_change > 0 and alive_count > 0:
-            first = node not in self.seen
-            self.seen.add(node)
-            if node in self.lost or first:
-                self.lost.pop(node, None)
-                return 'alive'
+        if alive_change > 0:
+            return self.confirm(node, writers)
         return None
+
+    def waiting(self):
+        """Nodes with a writer alive that is not yet known to be their own (the graph says
+        whose a writer is a little after the event): :meth:`confirm` them again later."""
+        return sorted(n for n, count in self.alive.items()
+                      if count > 0 and (n in self.lost or n not in self.seen))
+
+    def confirm(self, node, writers):
+        """``node`` has ``writers`` of its own on its topic (see the class): 'alive' when
+        that makes it alive again (or for the first time), else None."""
+        if self.alive[node] <= 0 or not (node in self.lost or node not in self.seen):
+            return None
+        if writers is not None:
+            fresh = set(writers) - self.dead[node]
+            if not fresh:
+                return None  # someone else's writer, or the dead node's: not the node
+            self.own[node] = fresh
+        self.seen.add(node)
+        self.lost.pop(node, None)
+        return 'alive'
 
     def check(self, now=None):
         """Return ``(newly_silent, back)``: node lists whose state changed since last check."""
@@ -108,3 +138,46 @@ class LivenessWatch:
                     f'({ifc.LIVELINESS_LEASE:g} s) expired or its writer went away')
         return (f'{node} silent: never alive in {now - self.started:.1f} s '
                 f'(heartbeat.timeout {self.grace:g} s)')
+
+
+class LivenessMonitor:
+    """``node`` watches the liveliness of the nodes ``names`` (a :class:`LivenessWatch`):
+    a subscription with liveliness events on each one's ``<name>/alive``, and whose each
+    writer is from the graph (a writer of a node named ``<name>`` in ``node``'s namespace).
+
+    ``on_change(name, 'lost' | 'alive')`` is called as a node is lost or (back) alive;
+    :meth:`poll` (from a timer) confirms writers the graph had not placed yet at their event.
+    """
+
+    def __init__(self, node, names, grace, on_change):
+        self.node, self.on_change = node, on_change
+        self.watch = LivenessWatch(names, grace)
+        self._subs = {n: ifc.subscription(
+            node, ifc.ALIVE[n], lambda _msg: None, event_callbacks=SubscriptionEventCallbacks(
+                liveliness=functools.partial(self._event, n))) for n in names}
+
+    def writers(self, name):
+        """The ids of the writers on ``name``'s liveliness topic that are ``name``'s own."""
+        infos = self.node.get_publishers_info_by_topic(self._subs[name].topic_name)
+        namespace = self.node.get_namespace()
+        return {tuple(i.endpoint_gid) for i in infos
+                if i.node_name == name and i.node_namespace == namespace}
+
+    def lost(self, name):
+        """Whether ``name`` was alive and its liveliness was lost since."""
+        return name in self.watch.lost
+
+    def _event(self, name, info):
+        try:
+            change = self.watch.changed(name, info.alive_count, info.alive_count_change,
+                                        info.not_alive_count_change,
+                                        writers=self.writers(name))
+            if change is not None:
+                self.on_change(name, change)
+        except Exception as exc:  # noqa: BLE001 - reported; the node keeps running
+            report_exception(self.node, f'{name} liveliness', exc)
+
+    def poll(self):
+        for name in self.watch.waiting():
+            if self.watch.confirm(name, self.writers(name)) == 'alive':
+                self.on_change(name, 'alive')

@@ -8,7 +8,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.signals import SignalHandlerOptions
 
-from sela_ros.nodes.guard import spin_guarded
+from sela_ros.nodes.guard import guard_clock, spin_guarded
 from sela_ros.nodes.params import StartupParameterError, params_file_problems
 
 #: Exit status of a node that refuses to start on a bad configuration (as argparse's).
@@ -68,6 +68,7 @@ def _spin(node_class, executor_factory):
     status = 0
     try:
         node = node_class()
+        guard_clock(node)
         executor = executor_factory()
         executor.add_node(node)
         spin_guarded(executor, node, stop=_interrupted.is_set, period=SPIN_PERIOD)

@@ -148,9 +148,17 @@ def check(spec, value):
     return spec.rule(value) if spec.rule is not None else None
 
 
+#: How YAML says "no value": what ``ros2 param dump`` writes for a parameter not set, which
+#: rcl's parameter file parser hands over as a string.
+NULL_WORDS = ('null', 'Null', 'NULL', '~')
+
+
 def coerce(spec, value):
-    """``value`` in the spec's type where it is an integer given for a double, and the spec's
-    word where it is the 0 that stood for it (:func:`zero_for_word`)."""
+    """``value`` in the spec's type where it is an integer given for a double, the spec's
+    word where it is the 0 that stood for it (:func:`zero_for_word`), and not set where it is
+    YAML's null for a parameter not set by default (a dump loads back)."""
+    if spec.default is None and spec.type != 'string' and value in NULL_WORDS:
+        return None
     if zero_for_word(spec, value):
         return spec.word
     if spec.type == 'double' and _as_double(value):

@@ -24,9 +24,13 @@ from rclpy.node import Node
 from sela_ros.core.planning import (
     DEFAULT_INFLATION,
     DEFAULT_MAP,
+    ORIGIN_LIMIT,
+    RESOLUTION_RANGE,
+    SIDE_RANGE,
     GridPlanner,
     MapError,
     PlanningError,
+    check_geometry,
     grid_from_description,
     grid_from_ros,
     load_map_file,
@@ -43,7 +47,13 @@ __all__ = ['PlannerNode', 'grid_from_description', 'load_map_file', 'main']
 
 
 def _origin_rule(value):
-    return None if len(value) == 2 else f'must be [x, y], got {list(value)}'
+    if len(value) != 2:
+        return f'must be [x, y], got {list(value)}'
+    try:
+        check_geometry(RESOLUTION_RANGE[0], value, SIDE_RANGE[0], SIDE_RANGE[0])
+    except MapError:
+        return f'must be within [{-ORIGIN_LIMIT:g}, {ORIGIN_LIMIT:g}] m, got {list(value)}'
+    return None
 
 
 def _obstacles_rule(value):
@@ -53,14 +63,14 @@ def _obstacles_rule(value):
 
 
 PARAMETERS = (
-    Spec('map.resolution', DEFAULT_MAP['resolution'], 'size of a grid cell', low=0.001,
-         high=1.0, unit=' m', read_only=True),
+    Spec('map.resolution', DEFAULT_MAP['resolution'], 'size of a grid cell',
+         low=RESOLUTION_RANGE[0], high=RESOLUTION_RANGE[1], unit=' m', read_only=True),
     Spec('map.origin', list(DEFAULT_MAP['origin']), 'lower-left corner [x, y] of the grid in '
          'odom (m)', rule=_origin_rule, read_only=True),
-    Spec('map.width', DEFAULT_MAP['width'], 'width of the grid', low=0.01, high=1000.0,
-         unit=' m', read_only=True),
-    Spec('map.height', DEFAULT_MAP['height'], 'height of the grid', low=0.01, high=1000.0,
-         unit=' m', read_only=True),
+    Spec('map.width', DEFAULT_MAP['width'], 'width of the grid', low=SIDE_RANGE[0],
+         high=SIDE_RANGE[1], unit=' m', read_only=True),
+    Spec('map.height', DEFAULT_MAP['height'], 'height of the grid', low=SIDE_RANGE[0],
+         high=SIDE_RANGE[1], unit=' m', read_only=True),
     # Not set by default: ROS cannot hold an empty typed array in YAML.
     Spec('map.obstacles', None, 'rectangles [xmin, ymin, xmax, ymax, ...] in m',
          kind='double_array', rule=_obstacles_rule, read_only=True),

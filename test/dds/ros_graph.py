@@ -10,8 +10,13 @@ import time
 from pathlib import Path
 
 import rclpy
-from rcl_interfaces.srv import (DescribeParameters, GetParameters, GetParameterTypes,
-                                  ListParameters, SetParameters)
+from rcl_interfaces.srv import (
+    DescribeParameters,
+    GetParameters,
+    GetParameterTypes,
+    ListParameters,
+    SetParameters,
+)
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node

@@ -202,11 +202,19 @@ def test_killed_nodes_come_back_and_the_mission_completes(graph):
     assert after[0][:len(before[0])] == before[0]
     assert after[1][:len(before[1])] == before[1]
 
-    # SIGKILL the planner: reported silent, then back, and the mission goes on.
+    # SIGKILL the planner: reported silent, and the mission ends (no plan can come), unless
+    # it ended already; started again, it plans the same goal sent again.
     nodes.kill('planner')
     client.spin_until(lambda: any('planner silent' in e for e in diag.errors('liveness')), 60,
                       'the silent planner reported')
+    client.spin_until(diag.get_result, 200, 'the end of the mission')
+    assert diag.get_result().success or 'the planner is lost' in diag.get_result().message
+    adapter_log = nodes.logdir / 'sela_adapter.log'
+    seen = adapter_log.read_text().count('planner alive')
     nodes.start('planner')
+    client.spin_until(lambda: adapter_log.read_text().count('planner alive') > seen, 120,
+                      'the adapter seeing the restarted planner')
+    diag.go_to_pose(1.6, 1.2, timeout=120)
 
     # SIGKILL the simulator: a new one starts, the adapter resends the lost command.
     steps_now = len(diag.steps)

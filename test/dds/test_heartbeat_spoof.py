@@ -3,9 +3,11 @@ import signal
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
+from std_srvs.srv import Trigger
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+from sela_ros.tools.mission_client import MissionClient
 
 from ros_graph import Client, NodeProcesses
 
@@ -63,7 +65,27 @@ def test_forged_heartbeats_and_a_forged_writer_do_not_hide_a_missing_or_killed_n
         except TimeoutError as exc:
             raise AssertionError(nodes.logs().get('damage_detector.log')) from exc
         assert 'liveliness lease' in _errors(statuses, 'planner silent')[0]
+        killed = len(statuses)
+        # The forger's writer destroyed and made again while the planner is dead: a new
+        # writer alive on planner/alive, not the planner's.
+        node.destroy_publisher(forged.pop())
+        forged.append(node.create_publisher(topic.type, topic.name, topic.qos))
+        spoof_until(lambda: forged[0].get_subscription_count() >= 1, 60,
+                    'the new forged writer matched by the detector', *fakes)
+        rematched = len(statuses)
+        spoof_until(lambda: len(_errors(statuses[rematched:], 'planner silent')) >= 8, 60,
+                    'the detector saying four times more that the planner is silent', *fakes)
+        back = [s.message for s in statuses[killed:] if s.name == 'planner: liveness'
+                and s.level != ifc.ERROR_LEVEL]
+        assert not back, back
+        assert 'planner is back' not in nodes.logs()['damage_detector.log']
         assert nodes.alive() == {'damage_detector': True}, nodes.logs()
+        # The planner itself, started again, is back.
+        nodes.start('planner')
+        restarted = len(statuses)
+        spoof_until(lambda: any(s.message == 'planner alive (liveliness)'
+                                for s in statuses[restarted:]), 120,
+                    'the restarted planner alive again', *fakes)
     finally:
         client.close()
         nodes.stop()
@@ -84,6 +106,84 @@ def test_no_liveness_alarm_at_start_up():
                   and ('liveness' in s.name or 'heartbeat' in s.message)]
         assert not alarms, alarms
         assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
+
+
+@pytest.mark.dds
+def test_a_killed_detector_is_reported_by_the_adapter_which_then_adapts_from_every_outcome():
+    nodes = NodeProcesses({'sela_adapter': {'adapt_on_start': 'false'}},
+                          names=('planner', 'damage_detector', 'sela_adapter'))
+    client = Client('detector_watcher')
+    statuses = []
+    try:
+        ifc.subscription(client.node, ifc.DIAGNOSTICS, lambda m: statuses.extend(m.status))
+        client.spin_until(lambda: any(s.name == 'damage_detector: liveness'
+                                      and s.message == 'damage_detector alive (liveliness)'
+                                      for s in statuses), 120,
+                          'the adapter seeing the detector alive')
+        nodes.kill('damage_detector', signal.SIGKILL)
+        try:
+            client.spin_until(lambda: _errors(statuses, 'damage_detector silent'), 60,
+                              'the killed detector reported by the adapter')
+        except TimeoutError as exc:
+            raise AssertionError(nodes.logs().get('sela_adapter.log')) from exc
+        report = _errors(statuses, 'damage_detector silent')[0]
+        assert 'liveliness lease' in report and 'no verdicts' in report, report
+
+        def adapting():
+            log = (nodes.logdir / 'sela_adapter.log').read_text()
+            return 'adapting from every outcome' in log and 'adaptation started' in log
+        client.spin_until(adapting, 30, 'the adapter adapting without verdicts')
+        # Learning forgotten (~/clear) while the detector is still lost: adapting again.
+        cleared = client.call(ifc.client(client.node, ifc.CLEAR), Trigger.Request())
+        assert cleared.success, cleared.message
+        client.spin_until(lambda: (nodes.logdir / 'sela_adapter.log').read_text().count(
+            'adapting from every outcome') >= 2, 30, 'adapting again after the clear')
+        # Said again while it lasts, as diagnostics are read.
+        heard = len(statuses)
+        client.spin_until(lambda: _errors(statuses[heard:], 'damage_detector silent'), 30,
+                          'the report repeated')
+        assert nodes.alive() == {'planner': True, 'sela_adapter': True}, nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
+
+
+@pytest.mark.dds
+@pytest.mark.slow
+def test_a_killed_planner_ends_the_mission_within_ten_seconds_of_being_reported():
+    nodes = NodeProcesses()
+    client = Client('planner_killer')
+    try:
+        mission = MissionClient(client.node,
+                                lambda t: client.executor.spin_once(timeout_sec=t))
+        mission.go_to_pose(3.0, 2.5, timeout=120)
+        client.spin_until(lambda: mission.steps or mission.get_result(), 200, 'a first step')
+        assert mission.get_result() is None, mission.get_result()
+        nodes.kill('planner', signal.SIGKILL)
+        client.spin_until(lambda: any('planner silent' in e
+                                      for e in mission.errors('liveness')), 60,
+                          'the killed planner reported')
+        try:
+            client.spin_until(mission.get_result, 10, 'the end of the mission')
+        except TimeoutError as exc:
+            raise AssertionError(nodes.logs().get('sela_adapter.log')) from exc
+        result = mission.get_result()
+        assert not result.success and 'the planner is lost' in result.message, result
+        assert result.values['code'] == 'no_plan', result.values
+        # A new goal while the planner is dead is ended at once, saying why.
+        first = result.values['mission']
+
+        def second_ended():
+            return [conv.status_values(s) for s in mission.statuses
+                    if s.name == ifc.MISSION_STATUS and 'the planner is lost' in s.message
+                    and conv.status_values(s).get('mission') not in (None, first)
+                    and 'success' in conv.status_values(s)]
+        mission.publish_goal(-1.0, 1.0)
+        client.spin_until(second_ended, 30, 'the end of the second mission')
+        assert second_ended()[0]['steps'] == '0', second_ended()
     finally:
         client.close()
         nodes.stop()

@@ -25,7 +25,7 @@ SPECS = node_parameters()  # every node's specs, as docs/parameters.md lists the
 CHANGED = {
     'sim_bridge': {'seed': 7, 'observation.noise_std': 0.02, 'right_on_fall': True,
                    'publish_max_rate': 0},
-    'planner': {'planner.inflation': 0.2, 'map.obstacles': '[0.8, 0.8, 1.2, 1.2]'},
+    'planner': {'planner.inflation': 0.2},  # map.obstacles left not set: dumped as null
     'damage_detector': {'detection.threshold': 0.2, 'heartbeat.nodes': '[planner]'},
     'sela_adapter': {'priors': 'none', 'priors.max.misfit': 0.5, 'goal.eps': 0.15,
                      'gp.kernel.sigma': 0.25, 'planner.horizon': 0,
@@ -36,7 +36,7 @@ CHANGED = {
 EXPECTED = {
     'sim_bridge': {'seed': 7, 'observation.noise_std': 0.02, 'right_on_fall': True,
                    'publish_max_rate': 'none'},
-    'planner': {'planner.inflation': 0.2, 'map.obstacles': [0.8, 0.8, 1.2, 1.2]},
+    'planner': {'planner.inflation': 0.2, 'map.obstacles': None},
     'damage_detector': {'detection.threshold': 0.2, 'heartbeat.nodes': ['planner']},
     'sela_adapter': {'priors.tables': 'none', 'priors.max_misfit': 0.5, 'goal.eps': 0.15,
                      'gp.kernel.sigma': 0.25, 'planner.horizon': 'auto',
@@ -73,20 +73,23 @@ def dump_yaml(node, values):
 
 
 @pytest.mark.dds
+@pytest.mark.parametrize('changed', [True, False], ids=['changed', 'defaults'])
 @pytest.mark.parametrize('node', sorted(SPECS))
-def test_a_dump_loads_back_to_the_same_values(node, tmp_path):
+def test_a_dump_loads_back_to_the_same_values(node, changed, tmp_path):
+    """With values changed at start-up, and with config/sela.yaml's as they are."""
     client = Client(f'sela_dump_{node}')
     try:
-        first = NodeProcesses({node: CHANGED[node]}, names=(node,))
+        first = NodeProcesses({node: CHANGED[node]} if changed else None, names=(node,))
         try:
             values = parameters_of(client, node)
             assert all(first.alive().values()), first.logs()
         finally:
             first.stop()
-        for name, value in EXPECTED[node].items():
-            assert values[name] == value, name
+        if changed:
+            for name, value in EXPECTED[node].items():
+                assert values[name] == value, name
         warned = any('0 is spelled' in log for log in first.logs().values())
-        assert warned == (node in ('sim_bridge', 'sela_adapter')), first.logs()
+        assert warned == (changed and node in ('sim_bridge', 'sela_adapter')), first.logs()
         for spec in SPECS[node]:
             assert spec.name in values and (spec.renamed_from or '') not in values
         path = tmp_path / f'{node}.yaml'

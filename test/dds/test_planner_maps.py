@@ -125,6 +125,17 @@ def test_maps_from_a_file_and_the_map_topic_and_bad_ones_refused(planner, tmp_pa
     rotated.info.origin.orientation = conv.yaw_to_quaternion(0.3)
     map_pub.publish(rotated)
     client.spin_until(lambda: watch.errors('yaw'), 30, 'rotated map reported')
+    # Cells and corners the map.* parameters' ranges refuse are refused on the topic too.
+    for field, value, reason in (('resolution', 1e-38, 'resolution 1e-38 m is out of'),
+                                 ('resolution', 3e38, 'resolution 3e+38 m is out of'),
+                                 ('x', 1e300, 'origin x 1e+300 m is out of')):
+        odd = _wall_map()
+        if field == 'resolution':
+            odd.info.resolution = value
+        else:
+            odd.info.origin.position.x = value
+        map_pub.publish(odd)
+        client.spin_until(lambda r=reason: watch.errors(r), 30, f'{field} {value} reported')
     bad_file = tmp_path / 'bad.yaml'
     bad_file.write_text('image: wall.pgm\nresolution: 0.05\norigin: 5\n')
     result = watch.set_map_file(bad_file)

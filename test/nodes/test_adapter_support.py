@@ -54,3 +54,37 @@ def test_an_empty_plan_says_why_from_the_planners_map_when_the_adapter_has_it():
     assert 'off the map' in adapter_support.plan_event(empty, command, default_grid()).reason
     assert 'diagnostics' in adapter_support.plan_event(empty, command).reason
     assert 'did not answer' in adapter_support.plan_event(None, command, default_grid()).reason
+
+
+def _defaults(**changes):
+    from sela_ros.nodes import adapter_params
+    values = {spec.name: spec.default for spec in adapter_params.PARAMETERS}
+    values.update({'priors.tables': 'none'}, **changes)
+    return values
+
+
+def test_the_outcome_limit_follows_the_archive_and_a_spoofed_long_outcome_is_refused():
+    from sela_ros.core.storage import load_archive
+    from sela_ros.nodes import adapter_params
+    archive = load_archive(default_archive_path())
+    fastest = float(np.max(np.hypot(*archive.generic_reward[:, :2].T)))
+    stepper = adapter_support.new_stepper(_defaults(), archive, None)
+    assert stepper.config.max_displacement == np.float64(2 * fastest)
+    assert 1.2 < stepper.config.max_displacement < 1.3  # the 8-D map's: 0.63 m
+    stepper.handle(io.PoseObserved((0.0, 0.0, 0.0), stamp=0.0), 0.0)
+    request = next(c for c in stepper.handle(io.GoalReceived((3.0, 0.0)), 0.0)
+                   if isinstance(c, io.RequestPlan))
+    gait = next(c for c in stepper.handle(io.PlanReceived(
+        request.step, tuple(request.start), (0.6, 0.0)), 0.0) if isinstance(c, io.SendGait))
+    # 1.5 m, consistent with its own poses: no gait of the map goes that far.
+    out = stepper.handle(io.OutcomeReceived(gait.behavior_id, (1.5, 0.0, 0.0),
+                                            (1.5, 0.0, 0.0), start_pose=(0.0, 0.0, 0.0)), 3.0)
+    refused = [c.message for c in out if isinstance(c, io.Report) and 'refused' in c.message]
+    assert refused and 'moves the robot 1.5 m' in refused[0], out
+    assert 'outcome.max_displacement 1.25' in refused[0], out
+    assert len(stepper.sela.observations[0]) == 0 and stepper.state is io.State.EXECUTING
+    # An explicit value is still taken, and auto again follows the archive.
+    assert adapter_support.new_stepper(_defaults(**{'outcome.max_displacement': 3.0}), archive,
+                                       None).config.max_displacement == 3.0
+    assert adapter_params.stepper_change('outcome.max_displacement', 'auto', archive) == {
+        'max_displacement': 2 * fastest}

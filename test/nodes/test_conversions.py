@@ -146,6 +146,21 @@ def test_occupancy_grid_round_trip(h, w, data):
     assert np.array_equal(back, occ) and res == 0.05 and np.array_equal(origin, [-1.0, 2.0])
 
 
+@pytest.mark.parametrize('resolution, origin, reason', [
+    (1e-38, (0.0, 0.0), r'resolution 1e-38 m is out of \[0.001, 1\] m'),
+    (3e38, (0.0, 0.0), r'resolution 3e\+38 m is out of \[0.001, 1\] m'),
+    (0.05, (1e300, 0.0), r'origin x 1e\+300 m is out of'),
+    (0.05, (0.0, -2e5), 'origin y -200000 m is out of'),
+])
+def test_a_grid_out_of_the_map_parameters_ranges_is_refused_with_the_reason(resolution, origin,
+                                                                            reason):
+    msg = grids.occupancy_grid_to_msg(np.zeros((4, 4), bool), 0.05, (0.0, 0.0))
+    msg.info.resolution = resolution
+    msg.info.origin.position.x, msg.info.origin.position.y = origin
+    with pytest.raises(conv.MessageError, match=reason):
+        grids.occupancy_grid_from_msg(msg)
+
+
 @given(st.integers(0, 2**40), st.booleans(), st.floats(0, 10), st.floats(0, 1))
 def test_verdict_round_trip(behavior_id, fire, error, threshold):
     verdict = Verdict(error=error, mean_error=float('nan'), fire=fire, judged=True)

@@ -23,6 +23,29 @@ def test_a_lost_writer_is_reported_even_while_another_one_lives():
 
 
 
+def test_only_a_writer_of_the_node_that_was_not_there_at_its_loss_makes_it_alive_again():
+    watch = LivenessWatch(['planner'], grace=2.0, now=0.0)
+    # Alive before the graph says whose the writer is: not yet; then confirmed.
+    assert watch.changed('planner', 1, 1, now=0.5, writers=set()) is None
+    assert watch.waiting() == ['planner']
+    assert watch.confirm('planner', {'p1'}) == 'alive'
+    assert watch.waiting() == []
+    assert watch.changed('planner', 2, 1, now=1.0, writers={'p1'}) is None  # a forger's
+    assert watch.changed('planner', 1, -1, 1, now=2.0, writers={'p1'}) == 'lost'  # killed
+    # The forger destroys its writer and makes it again: the dead planner's writer, still
+    # in the graph, and the forger's do not make the planner alive.
+    assert watch.changed('planner', 0, -1, now=3.0, writers={'p1'}) == 'lost'
+    assert watch.changed('planner', 1, 1, now=4.0, writers={'p1'}) is None
+    assert watch.confirm('planner', {'p1'}) is None
+    assert watch.check(now=4.5) == (['planner'], [])
+    # The planner started again: a writer of its own, new.
+    assert watch.changed('planner', 2, 1, now=5.0, writers={'p1', 'p2'}) == 'alive'
+    assert watch.check(now=5.5) == ([], ['planner'])
+    # Lost again: only a writer newer than p2 makes it alive.
+    assert watch.changed('planner', 1, -1, 1, now=6.0, writers={'p2'}) == 'lost'
+    assert watch.confirm('planner', {'p1', 'p2'}) is None
+    assert watch.confirm('planner', {'p3'}) == 'alive'
+
 
 def test_a_longer_grace_set_at_run_time_holds_the_alarm_back():
     watch = LivenessWatch(['planner'], grace=1.0, now=0.0)

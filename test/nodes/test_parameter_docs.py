@@ -54,7 +54,8 @@ def test_the_adapters_defaults_are_the_cores():
             assert specs[name] == config[adapter_params.SELA_NAMES.get(name, name)], name
     stepper = StepperConfig()
     for name, field in adapter_params.stepper_fields().items():
-        assert specs[name] == getattr(stepper, field), name
+        if specs[name] != 'auto':  # the archive's: test_adapter_support
+            assert specs[name] == getattr(stepper, field), name
 
 
 def test_auto_and_none_are_spelled_as_words_everywhere():
@@ -66,6 +67,7 @@ def test_auto_and_none_are_spelled_as_words_everywhere():
                      ('sela_adapter', 'gp.kernel.sigma'): 'auto',
                      ('sela_adapter', 'fall.kernel.sigma'): 'auto',
                      ('sela_adapter', 'planner.horizon'): 'auto',
+                     ('sela_adapter', 'outcome.max_displacement'): 'auto',
                      ('sela_adapter', 'acquisition.caution'): 'none',
                      ('sela_adapter', 'priors.max_misfit'): 'none',
                      ('sela_adapter', 'priors.weights.sd'): 'none'}
@@ -77,4 +79,5 @@ def test_auto_and_none_are_spelled_as_words_everywhere():
         assert '0 =' not in spec.description and '(0:' not in spec.description, name
         if spec.default == word:
             assert shipped[node][name] == word, name
-        assert f'or {word} |' in docs.split(f'| `{name}` |', 1)[1].split('\n', 1)[0], name
+        section = docs.split(f'## {node}\n', 1)[1]  # a name may be another node's too
+        assert f'or {word} |' in section.split(f'| `{name}` |', 1)[1].split('\n', 1)[0], name

@@ -146,3 +146,15 @@ def test_a_node_given_a_malformed_params_file_says_where_and_does_not_start(tmp_
     assert proc.returncode == 2, proc.stderr
     assert f'{broken}:4:1: not valid YAML' in proc.stderr
     assert 'Traceback' not in proc.stderr
+
+
+def test_yamls_null_for_a_parameter_not_set_by_default_is_not_set():
+    """What ``ros2 param dump`` writes for ``map.obstacles`` left not set loads back."""
+    unset = Spec('map.obstacles', None, 'rectangles', kind='double_array')
+    for null in ('null', '~', 'NULL'):
+        assert coerce(unset, null) is None and check(unset, coerce(unset, null)) is None
+    assert coerce(unset, [1, 2, 3, 4]) == [1.0, 2.0, 3.0, 4.0]
+    # Only there: a string parameter keeps the word, a set one refuses it.
+    assert coerce(Spec('map.file', None, 'a file', kind='string'), 'null') == 'null'
+    assert coerce(Spec('goal.eps', 0.1, 'm'), 'null') == 'null'
+    assert check(Spec('goal.eps', 0.1, 'm'), 'null') is not None

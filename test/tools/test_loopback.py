@@ -1,6 +1,7 @@
 """DDS stays on loopback: the environment applies the profile, and the profile allows loopback
 transports only (every socket of every process: dds/test_loopback_sockets.py)."""
 import os
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -10,12 +11,21 @@ NS = {'dds': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
 
 
 def test_the_environment_applies_the_loopback_profile():
-    env = ros_environment(domain_id=42, base={})
-    assert env['FASTDDS_DEFAULT_PROFILES_FILE'] == env['FASTRTPS_DEFAULT_PROFILES_FILE']
-    assert env['FASTDDS_DEFAULT_PROFILES_FILE'] == str(loopback_profile())
-    # The one range in which the rmw leaves the profile's transports and locators alone.
-    assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
-    assert env['RMW_IMPLEMENTATION'] == 'rmw_fastrtps_cpp' and env['ROS_DOMAIN_ID'] == '42'
+    """The profile of the ament prefix in use (``make venv``'s .venv, or a colcon install
+    whose tests import the package from the source tree), and with no prefix given, the
+    first one found from the interpreter's."""
+    from ament_index_python.packages import get_package_share_directory
+
+    installed = Path(get_package_share_directory(PACKAGE)) / 'config' / LOOPBACK_PROFILE
+    prefix = {'AMENT_PREFIX_PATH': os.environ['AMENT_PREFIX_PATH']}
+    for base, expected in ((prefix, installed), ({}, loopback_profile(sys.prefix))):
+        env = ros_environment(domain_id=42, base=base)
+        assert env['FASTDDS_DEFAULT_PROFILES_FILE'] == env['FASTRTPS_DEFAULT_PROFILES_FILE']
+        assert env['FASTDDS_DEFAULT_PROFILES_FILE'] == str(expected), base
+        assert Path(env['FASTDDS_DEFAULT_PROFILES_FILE']).is_file()
+        # The one range in which the rmw leaves the profile's transports and locators alone.
+        assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
+        assert env['RMW_IMPLEMENTATION'] == 'rmw_fastrtps_cpp' and env['ROS_DOMAIN_ID'] == '42'
 
 
 def test_the_profile_is_the_installed_one_or_the_source_trees():

@@ -140,6 +140,25 @@ class FallRisk:
                                              fallen)
 
     @property
+    def num_observations(self) -> int:
+        return self._gp.num_samples
+
+    def tell_many(self, indices, fallen) -> None:
+        """:meth:`tell` each ``(index, fallen)`` in turn; into an empty model at once."""
+        indices = [int(i) for i in indices]
+        fallen = [bool(f) for f in fallen]
+        if self._gp.num_samples:
+            for i, f in zip(indices, fallen):
+                self.tell(i, f)
+            return
+        self._gp.fit(indices, [[1.0 if f else 0.0, 1.0] for f in fallen])
+        self.falls += sum(fallen)
+        self._untried = {}
+        if self._z is not None:
+            for i, f in zip(indices, fallen):
+                self._log_lik += _log_likelihood(self._theta, self._beta, self._z[i], f)
+
+    @property
     def support_model(self):
         """Posterior means ``(theta, beta)`` of the logistic model; None without stability."""
         if self._z is None:

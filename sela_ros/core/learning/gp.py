@@ -7,7 +7,7 @@ difference between the observations and a prior mean (the archive's prediction).
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solve_triangular
+from scipy.linalg import cholesky, solve_triangular
 
 from sela_ros.core.validation import check_number, finite_array
 
@@ -186,6 +186,42 @@ class CandidateSetGP:
         self._var -= v * v
         self._indices.append(index)
         self._Y.append(y)
+
+    def fit(self, indices, ys) -> None:
+        """Learn the observations ``ys`` (N, D) of candidates ``indices`` into an empty GP, as
+        N :meth:`add_sample` calls would, in matrix products: one Cholesky factorisation and
+        one triangular solve over the archive instead of N passes over it (a state file of
+        many observations is taken back in a fraction of the time)."""
+        if self.num_samples:
+            raise ValueError('fit is for a GP with no observation yet')
+        idx = np.asarray([int(i) for i in indices], dtype=int)
+        if np.any((idx < 0) | (idx >= self.num_candidates)):
+            raise ValueError(f'indices must be in [0, {self.num_candidates})')
+        ys = np.asarray(ys, dtype=float).reshape(len(idx), self.output_dim)
+        _check_finite('y', ys)
+        n = len(idx)
+        if not n:
+            return
+        sq = self._sq_norms[idx][:, None] + self._sq_norms[None, :] \
+            - 2.0 * (self.candidates[idx] @ self.candidates.T)
+        np.maximum(sq, 0.0, out=sq)
+        k = np.exp((-0.5 / (self.sigma * self.sigma)) * sq, out=sq)
+        k *= self.variance  # (N, M): k(X_obs, X*)
+        k_nn = k[:, idx] + self.noise * np.eye(n)
+        try:
+            low = cholesky(k_nn, lower=True, check_finite=False)
+        except np.linalg.LinAlgError as exc:
+            raise ValueError('GP covariance is not positive definite (duplicate input with '
+                             'zero noise?); use a noise > 0') from exc
+        beta = solve_triangular(low, ys - self.prior[idx], lower=True, check_finite=False)
+        v = solve_triangular(low, k, lower=True, check_finite=False, overwrite_b=True)
+        chol = _GrowingCholesky(self.output_dim, capacity=max(32, 2 * n))
+        chol._L[:n, :n], chol._beta[:n], chol.n = low, beta, n
+        self._chol, self._V = chol, v
+        self._mu_t = np.ascontiguousarray(self.prior.T + beta.T @ v)
+        self._var = self.variance - np.einsum('ij,ij->j', v, v)
+        self._indices = idx.tolist()
+        self._Y = list(ys)
 
     def query(self):
         """Posterior of all candidates: ``(mu (M, D), var (M,))`` (views: do not modify)."""

@@ -546,6 +546,11 @@ class SELA:
         self._fall.tell(index, fallen)
 
     @property
+    def fall_observations(self) -> int:
+        """How many steps told whether they fell (:meth:`tell_fall`)."""
+        return self._fall.num_observations
+
+    @property
     def observations(self):
         """``(indices (N,), generic rewards (N, k))`` told so far."""
         return np.array(self._gp.indices, dtype=int), self._gp.observed
@@ -564,8 +569,30 @@ class SELA:
                 'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist(),
                 'set_aside': [dict(e) for e in self.set_aside_learning]}
 
-    def load_state_dict(self, state: dict) -> None:
-        """Restore what :meth:`state_dict` saved (same archive); replays the observations."""
+    def keep_latest(self, count: int) -> int:
+        """Keep the latest ``count`` observations of generic rewards and of falls, and
+        forget the older ones (a lifelong robot's learning stays bounded; what the recent
+        steps say of its body is what matters). What the steps scored stays. Returns how
+        many observations were forgotten."""
+        count = int(count)
+        idx, grs = self.observations
+        fall_idx, fallen = self._fall.observations
+        drop, drop_falls = max(0, len(idx) - count), max(0, len(fall_idx) - count)
+        if drop:
+            scores, surprises = dict(self._prior_scores), self._surprises[-count:]
+            standing = self._standing[drop:]
+            self.reset_learning()
+            self._gp.fit(idx[drop:], grs[drop:])
+            self._standing = standing
+            self._prior_scores, self._surprises = scores, surprises
+        if drop_falls:
+            self.forget_falls()
+            self._fall.tell_many(fall_idx[drop_falls:], fallen[drop_falls:])
+        return max(drop, drop_falls)
+
+    def load_state_dict(self, state: dict, keep: int | None = None) -> None:
+        """Restore what :meth:`state_dict` saved (same archive); replays the observations
+        (only the latest ``keep`` of them, None: all)."""
         if int(state.get('num_candidates', -1)) != self.num_candidates:
             raise ValueError(f'state is for {state.get("num_candidates")} candidates, this '
                              f'SELA has {self.num_candidates}')
@@ -597,20 +624,34 @@ class SELA:
                     n, self.motion.gr_dim).tolist(),
                 'standing_starts': [bool(f) for f in episode.get('standing_starts',
                                                                  [False] * n)]})
+        if keep is not None:
+            first, first_fall = max(0, len(indices) - keep), max(0, len(fall_indices) - keep)
+            indices, grs, standing = indices[first:], grs[first:], standing[first:]
+            fall_indices, fallen = fall_indices[first_fall:], fallen[first_fall:]
+            for episode in set_aside:
+                for key in ('indices', 'generic_rewards', 'standing_starts'):
+                    episode[key] = episode[key][-keep:]
         self.reset_learning()
         self.forget_falls()
         self.set_aside_learning = set_aside[-SET_ASIDE_KEPT:]
-        for i, y, st in zip(indices, grs, standing):
-            self.tell(int(i), y, st)
-        for i, f in zip(fall_indices, fallen):
-            self.tell_fall(i, f)
-        # The replay above scored the priors without the falls between the steps: the
-        # scores saved are those the steps gave as they came.
         scores = state.get('prior_scores')
-        if isinstance(scores, dict) and set(scores) == set(self._prior_scores):
-            self._prior_scores = {k: float(v) for k, v in scores.items()}
+        scores = ({k: float(v) for k, v in scores.items()} if isinstance(scores, dict)
+                  and set(scores) == set(self._prior_scores) else None)
         surprises = state.get('surprises')
-        if isinstance(surprises, list) and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
-                and v >= 0 for v in surprises):
-            self._surprises = [float(v) for v in surprises]
+        surprises = ([float(v) for v in surprises] if isinstance(surprises, list) and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+            and v >= 0 for v in surprises) else None)
+        if scores is not None and surprises is not None:
+            # What the steps scored as they came is saved: the replay only learns them, at
+            # once (scoring each again would take seconds per hundred steps, and give the
+            # saved values back less exactly, without the falls between the steps).
+            self._gp.fit(indices, grs)
+            self._standing = list(standing)
+        else:
+            for i, y, st in zip(indices, grs, standing):
+                self.tell(int(i), y, st)
+        self._fall.tell_many(fall_indices, fallen)
+        if scores is not None:
+            self._prior_scores = scores
+        if surprises is not None:
+            self._surprises = surprises if keep is None else surprises[-keep:]

@@ -263,6 +263,7 @@ class MissionStepper:
         p.record = self.logic.outcome(p.decision, p.pose, event.generic_reward,
                                       fallen=event.fallen, true_pose=event.true_pose,
                                       standing_start=event.standing_start)
+        out += self._bound_learning()
         if event.fallen:
             self.failed_steps += 1
             out.append(Report(Level.ERROR, f'step {self.steps} failed: the robot fell or '
@@ -500,6 +501,17 @@ class MissionStepper:
         return PublishStatus(Level.OK if self.result else Level.ERROR, reason,
                              dict(self.status(), code=code))
 
+    def _bound_learning(self):
+        """Over a robot's life, learning keeps the latest ``max_observations`` observations
+        (forgotten by the batch: a tenth more at most, then back to the cap)."""
+        cap = self.config.max_observations
+        told = max(len(self.sela.observations[0]), self.sela.fall_observations)
+        if told <= cap + max(1, cap // 10):
+            return []
+        forgotten = self.sela.keep_latest(cap)
+        return [Report(Level.OK, f'learning bounded: the {forgotten} oldest observation(s) '
+                       f'forgotten, the latest {cap} kept (max_observations)')]
+
     def _save(self):
         return SaveState(self.snapshot())
 
@@ -541,7 +553,7 @@ class MissionStepper:
         waits for its outcome. A mission that had ended says its result again: a client
         that had not heard it when the adapter stopped hears it now.
         """
-        self.sela.load_state_dict(snapshot['sela'])
+        self.sela.load_state_dict(snapshot['sela'], keep=self.config.max_observations)
         m = snapshot['mission']
         self.logic.restore(bool(m['adapting']), int(m['adaptations']), m['last'])
         self.next_id = int(m['next_id'])

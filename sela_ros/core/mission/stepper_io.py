@@ -229,6 +229,9 @@ class StepperConfig:
     pose_tolerance: float = 0.1  # m: odometry this far from the held pose replaces it
     on_detection: str = 'evidence'  # a detection while adapting: see learning.ON_DETECTION
     max_displacement: float = 2.0  # m: an outcome moving the robot further is refused
+    # Observations (generic rewards, falls) kept over a robot's life, the latest: what a
+    # state file holds and start-up replays is bounded (docs/reliability.md).
+    max_observations: int = 1000
 
 
 @dataclass

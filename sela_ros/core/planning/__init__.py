@@ -10,7 +10,11 @@ from sela_ros.core.planning.grid import (
 from sela_ros.core.planning.maps import (
     DEFAULT_INFLATION,
     DEFAULT_MAP,
+    ORIGIN_LIMIT,
+    RESOLUTION_RANGE,
+    SIDE_RANGE,
     MapError,
+    check_geometry,
     default_grid,
     grid_from_description,
     grid_from_ros,
@@ -23,7 +27,8 @@ from sela_ros.core.planning.planner import (
     straight_line_planner,
 )
 
-__all__ = ['DEFAULT_INFLATION', 'DEFAULT_MAP', 'AStarPlanner', 'GridPlanner',
-           'InObstacleError', 'MapError', 'OccupancyGrid', 'OffMapError', 'PlanningError',
-           'UnreachableError', 'default_grid', 'grid_from_description', 'grid_from_ros',
-           'load_map_file', 'next_waypoint', 'straight_line_planner']
+__all__ = ['DEFAULT_INFLATION', 'DEFAULT_MAP', 'ORIGIN_LIMIT', 'RESOLUTION_RANGE', 'SIDE_RANGE',
+           'AStarPlanner', 'GridPlanner', 'InObstacleError', 'MapError', 'OccupancyGrid',
+           'OffMapError', 'PlanningError', 'UnreachableError', 'check_geometry', 'default_grid',
+           'grid_from_description', 'grid_from_ros', 'load_map_file', 'next_waypoint',
+           'straight_line_planner']

@@ -35,6 +35,12 @@ MAP_SERVER_MODES = ('trinary', 'scale', 'raw')
 #: experiments' without ``--map``): an empty 8 m square centred on the start, which holds every
 #: goal the README and docs use. Goals off it are refused by the nodes and the experiments.
 DEFAULT_MAP = {'resolution': 0.05, 'origin': (-4.0, -4.0), 'width': 8.0, 'height': 8.0}
+#: What a map may be, wherever it comes from (the ``map.*`` parameters, a map file, a map on
+#: a topic): a cell of 1 mm to 1 m (m), a side of 1 cm to 1 km (m), a corner within 100 km
+#: of the odom origin (m). Beyond them a map is refused with the reason, not planned on.
+RESOLUTION_RANGE = (0.001, 1.0)
+SIDE_RANGE = (0.01, 1000.0)
+ORIGIN_LIMIT = 1e5
 #: Clearance kept from obstacles (m): about half the hexapod's width, legs out.
 DEFAULT_INFLATION = 0.25
 
@@ -56,6 +62,20 @@ def _number(value, name, positive=False):
     return float(value)
 
 
+def check_geometry(resolution, origin, width, height, name='map'):
+    """Raise :class:`MapError` unless a map of cell ``resolution``, corner ``origin`` and
+    sides ``width`` x ``height`` (m) is within :data:`RESOLUTION_RANGE`, :data:`SIDE_RANGE`
+    and :data:`ORIGIN_LIMIT`."""
+    def within(value, low, high, what):
+        if not low <= value <= high:
+            raise MapError(f'{name} {what} {value:g} m is out of [{low:g}, {high:g}] m')
+    within(resolution, *RESOLUTION_RANGE, 'resolution')
+    for value, what in ((origin[0], 'origin x'), (origin[1], 'origin y')):
+        within(value, -ORIGIN_LIMIT, ORIGIN_LIMIT, what)
+    within(width, *SIDE_RANGE, 'width')
+    within(height, *SIDE_RANGE, 'height')
+
+
 def _numbers(value, name, lengths, what):
     if isinstance(value, (str, bytes, dict)) or not hasattr(value, '__len__'):
         raise MapError(f'{name} must be a list {what}, got {value!r}')
@@ -74,6 +94,7 @@ def grid_from_description(resolution, origin, width, height, obstacles):
     x0, y0 = _numbers(origin, 'map.origin', (2,), '[x, y]')
     width = _number(width, 'map.width', positive=True)
     height = _number(height, 'map.height', positive=True)
+    check_geometry(resolution, (x0, y0), width, height, 'map.*:')
     if isinstance(obstacles, (str, bytes, dict)) or not hasattr(obstacles, '__len__'):
         raise MapError('map.obstacles must be a flat list of rectangles '
                        f'[xmin, ymin, xmax, ymax, ...] (write [] for none), got {obstacles!r}')
@@ -99,8 +120,10 @@ def grid_from_ros(data, resolution, origin, unknown_is_occupied=True):
     if data.ndim != 2 or data.size == 0 or not np.issubdtype(data.dtype, np.integer):
         raise MapError(f'occupancy values must be a non-empty 2-D integer array, got '
                        f'{data.dtype} {data.shape}')
-    return OccupancyGrid(data, _number(resolution, 'resolution', positive=True), origin,
-                         unknown_is_occupied=unknown_is_occupied)
+    resolution = _number(resolution, 'resolution', positive=True)
+    origin = _numbers(origin, 'origin', (2,), '[x, y]')
+    check_geometry(resolution, origin, data.shape[1] * resolution, data.shape[0] * resolution)
+    return OccupancyGrid(data, resolution, origin, unknown_is_occupied=unknown_is_occupied)
 
 
 # --- images ----------------------------------------------------------------------------

@@ -6,6 +6,7 @@ crash (even SIGKILL) leaves the old file or the new one, never a partial one.
 import json
 import math
 import os
+import stat
 import tempfile
 import threading
 import time
@@ -22,6 +23,10 @@ class StateError(ValueError):
     """A state file that cannot be used (corrupt, or for another archive)."""
 
 
+class NotAStateFile(StateError):
+    """Something other than a regular file where the state file should be: left alone."""
+
+
 def atomic_write(path, write, sync=True):
     """Call ``write(binary_handle)`` on a temporary file beside ``path``, fsync, rename over.
 
@@ -29,8 +34,12 @@ def atomic_write(path, write, sync=True):
     is fsync'ed too, so the rename itself survives a power cut. With ``sync=False`` there is
     no fsync: the rename still makes the new file appear whole or not at all to any process
     (a SIGKILL cannot leave half of it), but a power cut may bring back the previous one.
+
+    A symbolic link stays one: the file it points to is the one written.
     """
     path = Path(path)
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.tmp', dir=path.parent)
     try:
@@ -77,6 +86,24 @@ def default_state_file():
         'sela_adapter_state.json'
 
 
+def path_problem(path):
+    """Why ``path`` cannot be a state file (something other than a regular file is there,
+    through any symbolic link: a FIFO would hang the read, a device would be overwritten),
+    or None (a regular file, or nothing yet)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        return f'{path} cannot be looked at: {exc}'
+    if stat.S_ISREG(mode):
+        return None
+    kinds = ((stat.S_ISFIFO, 'a FIFO'), (stat.S_ISDIR, 'a directory'),
+             (stat.S_ISSOCK, 'a socket'), (stat.S_ISCHR, 'a device'), (stat.S_ISBLK, 'a device'))
+    kind = next((name for test, name in kinds if test(mode)), 'not a regular file')
+    return f'{path} is {kind}, expected a regular file (or none yet)'
+
+
 def state_document(archive_size, snapshot):
     """The state file's content: ``snapshot`` (``sela`` and ``mission`` sections) tagged with
     the format and the size of the archive it was learned on."""
@@ -102,6 +129,9 @@ def load_state(path, archive_size, gr_dim=3, limits=None):
             the message says which and where.
     """
     path = Path(path)
+    problem = path_problem(path)
+    if problem:
+        raise NotAStateFile(f'state file {problem}')
     try:
         if not path.exists():
             return None
@@ -219,6 +249,8 @@ def resume_state(path, archive_size, restore, gr_dim=3, limits=None):
             return None, None
         restore(state)
         return state, None
+    except NotAStateFile as exc:
+        return None, f'{exc}; left as it is, started afresh'
     except Exception as exc:  # noqa: BLE001 - whatever the file holds, the node starts
         reason = str(exc) if isinstance(exc, StateError) else (
             f'state file {path} cannot be used: {type(exc).__name__}: {exc}')

@@ -4,9 +4,11 @@ An observed outcome is learnt by the GPs and saved for the rest of the robot's l
 end pose is where the next step starts. So an outcome that says one 3 s gait moved the robot
 a kilometre (a sensor glitch, a simulator gone wrong, someone publishing on the topic) must
 be refused with the reason, never learnt: one such observation drags the GP's mean of every
-nearby gait, and a pose off the map ends the mission. The shipped archive's gaits move the
-intact robot at most 0.45 m; the default limit, ``outcome.max_displacement`` = 2 m, leaves
-room for other robots and archives while refusing what no gait can do.
+nearby gait, and a pose off the map ends the mission. The adapter's limit follows its archive
+by default (``outcome.max_displacement`` auto: :func:`archive_displacement_limit`, twice the
+furthest gait of the map: 1.25 m on the shipped 8-D map, whose fastest gait moves the intact
+robot 0.63 m; 0.91 m on the 2-D map); :data:`DEFAULT_MAX_DISPLACEMENT`, 2 m, is the limit
+where no archive is at hand (the damage detector's default).
 
 The same limits hold for every way generic rewards come in: a live outcome
 (:func:`check_outcome`, which also checks that the generic reward is the displacement its own
@@ -20,6 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 DEFAULT_MAX_DISPLACEMENT = 2.0  # m in one gait
+#: An outcome may move the robot this many times as far as the archive's furthest gait: a
+#: damaged robot is slower, not faster, than its map; a tumble adds a few centimetres.
+ARCHIVE_MARGIN = 2.0
 #: How far (m) a generic reward may be from the displacement its start and end poses give:
 #: both come from the same two observations, so they agree up to the position noise of a
 #: start pose taken from odometry instead (0.01 m std here); 0.25 m refuses a reward that
@@ -50,6 +55,13 @@ class OutcomeLimits:
                     or not math.isfinite(value) or value <= 0:
                 raise ValueError(f'outcome.{name} must be a finite number > 0 ({unit}), got '
                                  f'{value!r}')
+
+
+def archive_displacement_limit(generic_rewards, margin=ARCHIVE_MARGIN):
+    """``outcome.max_displacement`` for an archive of ``generic_rewards`` (N, 3): ``margin``
+    times the planar displacement of its furthest gait."""
+    gr = np.asarray(generic_rewards, dtype=float).reshape(-1, 3)
+    return float(margin * np.max(np.hypot(gr[:, 0], gr[:, 1])))
 
 
 def _finite(name, values):

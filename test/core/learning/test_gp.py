@@ -62,6 +62,31 @@ def test_candidate_cache_matches_closed_form_incrementally():
     assert cache.indices == [int(i) for i in idx]
 
 
+def test_fit_at_once_is_what_the_samples_one_by_one_give_and_it_grows_on():
+    rng = np.random.default_rng(3)
+    C = rng.random((300, 3))
+    P = prior(C)
+    idx = rng.integers(0, 300, size=40)
+    idx[5] = idx[4]
+    Y = rng.normal(size=(40, 2))
+    one_by_one, at_once = CandidateSetGP(C, P, sigma=0.2), CandidateSetGP(C, P, sigma=0.2)
+    for i, y in zip(idx[:30], Y[:30]):
+        one_by_one.add_sample(i, y)
+    at_once.fit(idx[:30], Y[:30])
+    for i, y in zip(idx[30:], Y[30:]):  # and samples after the fit, past a regrowth
+        one_by_one.add_sample(i, y)
+        at_once.add_sample(i, y)
+    mu_ref, var_ref = closed_form(C[idx], Y, C, prior, sigma=0.2)
+    for gp in (one_by_one, at_once):
+        mu, var = gp.query()
+        np.testing.assert_allclose(mu, mu_ref, atol=1e-9)
+        np.testing.assert_allclose(var, var_ref, atol=1e-9)
+    assert at_once.indices == [int(i) for i in idx]
+    np.testing.assert_allclose(at_once.observed, Y)
+    with pytest.raises(ValueError, match='no observation yet'):
+        at_once.fit(idx[:2], Y[:2])
+
+
 def test_observation_reduces_variance_at_that_point():
     cache = CandidateSetGP(np.linspace(0, 1, 11)[:, None], np.zeros((11, 1)))
     cache.add_sample(5, [1.0])

@@ -202,6 +202,40 @@ def test_state_dict_round_trip_through_json():
         SELA(np.zeros((3, 1)), np.zeros((3, 2)), PointMotion()).load_state_dict(state)
 
 
+def test_the_latest_observations_are_kept_and_taken_back_as_learnt():
+    world, problem = toy(seed=5)
+    sela = problem.make_sela()
+    pose = world.observed_pose()
+    for _ in range(12):
+        d = sela.ask(pose)
+        after = world.execute(d.index)
+        sela.tell(d.index, observed_generic_reward(pose, after, sela.motion))
+        sela.tell_fall(d.index, False)
+        pose = after
+    state = json.loads(json.dumps(sela.state_dict()))
+    indices = sela.observations[0].tolist()
+    # Taken back whole: what the steps scored, and the posterior, as learnt.
+    whole = problem.make_sela()
+    whole.load_state_dict(state)
+    np.testing.assert_allclose(whole.predict()[0], sela.predict()[0], atol=1e-9)
+    assert whole.state_dict()['surprises'] == state['surprises']
+    assert whole.state_dict()['prior_scores'] == state['prior_scores']
+    # The latest 5 only: as if only they had been learnt.
+    latest = problem.make_sela()
+    latest.load_state_dict(state, keep=5)
+    reference = problem.make_sela()
+    for i, y in zip(indices[-5:], sela.observations[1][-5:]):
+        reference.tell(int(i), y)
+    np.testing.assert_allclose(latest.predict()[0], reference.predict()[0], atol=1e-9)
+    assert latest.observations[0].tolist() == indices[-5:]
+    assert latest.fall_observations == 5
+    # Bounded in place: the same.
+    assert sela.keep_latest(5) == 7
+    assert sela.observations[0].tolist() == indices[-5:] and sela.fall_observations == 5
+    np.testing.assert_allclose(sela.predict()[0], reference.predict()[0], atol=1e-9)
+    assert sela.keep_latest(5) == 0
+
+
 def test_goal_reached():
     sela = SELA(np.zeros((2, 1)), np.zeros((2, 2)), PointMotion(), goal=[2.0, 2.0])
     assert sela.goal_reached([1.95, 2.05])

@@ -578,3 +578,23 @@ def test_a_planner_that_never_answers_ends_the_mission_with_the_reason():
     end = only(ends, MissionEnded)
     assert end.code == 'no_plan' and 'did not answer 3' in end.reason
     assert d.state is State.DONE and d.stepper.steps == 0
+
+
+def test_learning_keeps_the_latest_observations_over_a_long_life_and_so_do_its_saves():
+    d = Driver(adapt_on_start=True, max_observations=10, max_steps=100)
+    request = d.start(goal=(50.0, 0.0))
+    sizes = []
+    for _ in range(25):
+        request = d.step(request)
+        sizes.append((len(d.stepper.sela.observations[0]), d.stepper.sela.fall_observations))
+    assert max(max(s) for s in sizes) <= 11  # a tenth more at most, then back to 10
+    assert (10, 10) in sizes
+    said = [r.message for r in of(d.log, Report) if 'learning bounded' in r.message]
+    assert said and 'the latest 10 kept' in said[0]
+    snapshot = d.stepper.snapshot()['sela']
+    assert len(snapshot['indices']) <= 11 and len(snapshot['fall_indices']) <= 11
+    # A state file of a longer life (another cap) is taken back with the latest only.
+    restored = Driver(adapt_on_start=True, max_observations=4)
+    restored.stepper.restore(d.stepper.snapshot(), 0.0)
+    assert restored.stepper.sela.observations[0].tolist() == snapshot['indices'][-4:]
+    assert restored.stepper.sela.fall_observations == 4

@@ -1,6 +1,8 @@
 """State files that cannot be used are set aside with the reason; saves are acknowledged only
 once durable."""
 import json
+import os
+import stat
 import threading
 
 import numpy as np
@@ -12,6 +14,7 @@ from sela_ros.core.storage.persistence import (
     StateStore,
     atomic_write_json,
     load_state,
+    path_problem,
     resume_state,
 )
 
@@ -160,3 +163,37 @@ def test_a_failed_save_is_released_with_its_error(tmp_path):
     [(items, error)] = store.released()
     assert items == [] and 'could not save' in error and store.failures == 2
     store.close()
+
+
+def test_a_fifo_or_a_directory_as_state_file_is_refused_at_once_and_left_alone(tmp_path):
+    fifo = tmp_path / 'state.json'
+    os.mkfifo(fifo)  # reading it would wait for a writer forever
+    assert 'is a FIFO, expected a regular file' in path_problem(fifo)
+    with pytest.raises(StateError, match='is a FIFO'):
+        load_state(fifo, SIZE)
+    state, problem = resume_state(fifo, SIZE, lambda s: None)
+    assert state is None and 'is a FIFO' in problem and 'left as it is' in problem
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)  # not set aside, not replaced
+    assert 'is a directory' in path_problem(tmp_path)
+    assert path_problem(tmp_path / 'none yet.json') is None
+    # Through a link too.
+    link = tmp_path / 'link.json'
+    link.symlink_to(fifo)
+    assert 'is a FIFO' in path_problem(link)
+
+
+def test_a_symlinked_state_file_stays_a_link_and_its_target_is_written(tmp_path):
+    target = tmp_path / 'elsewhere' / 'state.json'
+    atomic_write_json(target, _good())
+    link = tmp_path / 'state.json'
+    link.symlink_to(target)
+    assert path_problem(link) is None
+    store = StateStore(link)
+    state = _good()
+    state['mission']['steps'] = 7
+    store.save(state)
+    store.flush(timeout=30)
+    store.close()
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert load_state(link, SIZE)['mission']['steps'] == 7
+    assert json.loads(target.read_text())['mission']['steps'] == 7
