@@ -7,9 +7,12 @@ stepper's mission id, so that the mission's statuses become the goal's feedback 
 :class:`~sela_ros.core.mission.stepper_io.MissionEnded` the goal's result. One mission at a
 time, as nav2: a new goal (an action's, or one on the topics) ends the running mission and
 aborts its goal ("preempted"). A cancel ends the mission after the running gait (no gait after
-it); the goal is then CANCELED. A goal off the map or in an obstacle is accepted and aborted
-at once, with ``error_code`` and ``error_msg`` saying why; a mission that ends without reaching
-its goal is aborted with the stepper's reason.
+it); the goal is then CANCELED (a cancel that comes once the mission has ended is rejected).
+A goal off the map or in an obstacle is accepted and aborted at once, with ``error_code`` and
+``error_msg`` saying why; a mission that ends without reaching its goal is aborted with the
+stepper's reason. Every goal request is answered: the services keep a burst of requests, and
+a goal is rejected with the reason logged when too many are active or it makes too many
+waypoints.
 
 No callback waits: the execute callbacks are coroutines that await the mission's end, which
 the node's event loop resolves (:meth:`MissionActions.mission_ended`).
@@ -114,7 +117,7 @@ class MissionActions:
         if self.node.stepper is None:  # no archive, no stepper: nothing could walk to it
             return 'no archive loaded: set the archive parameter first'
         if self.active >= MAX_ACTIVE_GOALS:
-            return (f'{self.active} goals are still being accepted or ended (at most '
+            return (f'{self.active} accepted goals have not ended yet (at most '
                     f'{MAX_ACTIVE_GOALS}); send it again later')
         if hasattr(request, 'poses'):
             count = goal_count(request)

@@ -134,6 +134,12 @@ def test_a_goal_with_a_million_loops_is_rejected_with_the_reason(stack):
     user.client.spin_until(lambda: _errors(user, 'more than max_waypoints'), 30,
                            'the reason of the rejection')
     print(_errors(user, 'more than max_waypoints')[-1])
+    # The same bound on goal_path.
+    path_pub = ifc.publisher(user.client.node, ifc.GOAL_PATH)
+    user.client.spin_until(lambda: path_pub.get_subscription_count() > 0, 30, 'the adapter')
+    path_pub.publish(conv.path_to_msg([user.pose[:2]] * 1001))
+    user.client.spin_until(lambda: _errors(user, 'goal path refused: 1001 poses'), 30,
+                           'the goal path refused')
     # The largest mission allowed (1 pose, 999 more loops) is taken, then canceled.
     handle = user.send(user.follow, FollowWaypoints.Goal(
         poses=[user.goal_ahead(0.3, 0.0)], number_of_loops=999), [])

@@ -94,4 +94,4 @@ def test_a_goal_of_a_million_loops_is_refused_without_expanding_it(actions):
     assert actions._refusal(FollowWaypoints.Goal(poses=_poses((1, 0)),
                                                  number_of_loops=999)) is None
     actions.active = 200
-    assert 'still being accepted or ended' in actions._refusal(NavigateToPose.Goal())
+    assert 'accepted goals have not ended yet' in actions._refusal(NavigateToPose.Goal())
