@@ -102,7 +102,8 @@ def test_fifty_goals_from_five_clients_at_once_are_all_answered(stack):
             c.close()
 
 
-def test_a_preempt_storm_gives_every_accepted_goal_one_result(stack):
+@pytest.mark.parametrize('ahead', [(0.0, 0.4), (0.0, 0.0)], ids=['walked', 'reached at once'])
+def test_a_preempt_storm_gives_every_accepted_goal_one_result(stack, ahead):
     nodes, user = stack
     goal_pub = ifc.publisher(user.client.node, ifc.GOAL)
     user.client.spin_until(lambda: goal_pub.get_subscription_count() > 0, 30, 'the adapter')
@@ -111,7 +112,7 @@ def test_a_preempt_storm_gives_every_accepted_goal_one_result(stack):
     user.client.spin_until(follow.done, 30, 'the follow_waypoints goal response')
     time.sleep(0.15)
     navigate = user.navigate.send_goal_async(NavigateToPose.Goal(
-        pose=user.goal_ahead(0.0, 0.4)))
+        pose=user.goal_ahead(*ahead)))
     goal_pub.publish(user.goal_ahead(0.3, 0.0))
     user.client.spin_until(navigate.done, 30, 'the navigate_to_pose goal response')
     handles = [f.result() for f in (follow, navigate) if f.result().accepted]
