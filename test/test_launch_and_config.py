@@ -145,3 +145,16 @@ def test_config_defaults_are_the_code_defaults():
     for key, value in vars(DetectorConfig()).items():
         assert detector[f'detection.{key}'] == value, key
     assert detector['outcome.max_displacement'] == OutcomeLimits().max_displacement
+
+
+def test_adaptation_on_detection_has_one_default():
+    """The node's parameter, config/sela.yaml, the stepper and the learning logic agree."""
+    import inspect
+
+    from sela_ros.core.mission import MissionLogic, StepperConfig
+    from sela_ros.nodes import adapter_params
+
+    spec = next(s for s in adapter_params.PARAMETERS if s.name == 'adaptation.on_detection')
+    logic = inspect.signature(MissionLogic).parameters['on_detection'].default
+    yaml_value = _config()['sela_adapter']['ros__parameters']['adaptation.on_detection']
+    assert {spec.default, logic, yaml_value} == {StepperConfig.on_detection}

@@ -7,9 +7,12 @@ stepper's mission id, so that the mission's statuses become the goal's feedback 
 :class:`~sela_ros.core.mission.stepper_io.MissionEnded` the goal's result. One mission at a
 time, as nav2: a new goal (an action's, or one on the topics) ends the running mission and
 aborts its goal ("preempted"). A cancel ends the mission after the running gait (no gait after
-it); the goal is then CANCELED. A goal off the map or in an obstacle is accepted and aborted
-at once, with ``error_code`` and ``error_msg`` saying why; a mission that ends without reaching
-its goal is aborted with the stepper's reason.
+it); the goal is then CANCELED (a cancel that comes once the mission has ended is rejected).
+A goal off the map or in an obstacle is accepted and aborted at once, with ``error_code`` and
+``error_msg`` saying why; a mission that ends without reaching its goal is aborted with the
+stepper's reason. Every goal request is answered: the services keep a burst of requests, and
+a goal is rejected with the reason logged when too many are active or it makes too many
+waypoints.
 
 No callback waits: the execute callbacks are coroutines that await the mission's end, which
 the node's event loop resolves (:meth:`MissionActions.mission_ended`).
@@ -21,6 +24,7 @@ from builtin_interfaces.msg import Duration
 from nav2_msgs.msg import MissedWaypoint
 from nav_msgs.msg import Path
 from rclpy.action import CancelResponse, GoalResponse
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
 from sela_ros.core.mission import stepper_io as io
@@ -43,6 +47,18 @@ class Binding:
     start_distance: float = None
 
 
+#: The action servers' goal, cancel and result services keep this many requests (and
+#: replies) each: a burst from several clients is answered, none dropped (rclpy's default
+#: keeps 10).
+SERVICE_DEPTH = 1000
+#: Goals accepted and not yet ended, at most: one more is rejected, with the reason logged.
+MAX_ACTIVE_GOALS = 200
+#: Ends of missions not (yet) bound to a goal that are kept (topic goals' ones age out).
+UNBOUND_KEPT = 16
+_SERVICE_QOS = QoSProfile(depth=SERVICE_DEPTH, history=HistoryPolicy.KEEP_LAST,
+                          reliability=ReliabilityPolicy.RELIABLE)
+
+
 def _duration(seconds):
     seconds = max(0.0, float(seconds)) if math.isfinite(seconds) else 0.0
     sec = int(seconds)
@@ -54,6 +70,13 @@ def goal_id_text(handle):
     return bytes(handle.goal_id.uuid).hex()
 
 
+def goal_count(request):
+    """How many waypoints a FollowWaypoints ``request`` makes (``goal_index`` on, then
+    ``number_of_loops`` more rounds), without expanding them."""
+    poses = len(request.poses)
+    return max(0, poses - int(request.goal_index)) + poses * int(request.number_of_loops)
+
+
 class MissionActions:
     """The two action servers of ``node`` (a :class:`~sela_ros.nodes.adapter_node.
     SelaAdapter`), and which goal each mission belongs to."""
@@ -61,11 +84,18 @@ class MissionActions:
     def __init__(self, node):
         self.node = node
         self.bindings = {}  # mission id -> Binding
+        # Ends of missions no goal was bound to yet, by mission id: a mission can end within
+        # the event that starts it (its goal reached already), before _run binds its goal.
+        self._unbound = {}
         self._cancels = []  # goal handles whose cancel was accepted, to feed after it
         self._cancel_ready = node.create_guard_condition(self._feed_cancels)
+        self.active = 0  # goals accepted and not yet ended
         self.servers = [
             ifc.action_server(node, action, self._execute, goal_callback=self._goal,
-                              cancel_callback=self._cancel)
+                              cancel_callback=self._cancel,
+                              goal_service_qos_profile=_SERVICE_QOS,
+                              result_service_qos_profile=_SERVICE_QOS,
+                              cancel_service_qos_profile=_SERVICE_QOS)
             for action in ifc.ACTIONS]
 
     def destroy(self):
@@ -75,10 +105,36 @@ class MissionActions:
     # --- goals -----------------------------------------------------------------------------
 
     def _goal(self, request):
-        # No archive, no stepper: nothing could walk to it.
-        return GoalResponse.ACCEPT if self.node.stepper is not None else GoalResponse.REJECT
+        """Accept a goal, or reject it saying why (a goal response has no reason)."""
+        refusal = self._refusal(request)
+        if refusal is None:
+            self.active += 1
+            return GoalResponse.ACCEPT
+        self.node.report(io.Level.ERROR, f'goal rejected: {refusal}')
+        return GoalResponse.REJECT
+
+    def _refusal(self, request):
+        if self.node.stepper is None:  # no archive, no stepper: nothing could walk to it
+            return 'no archive loaded: set the archive parameter first'
+        if self.active >= MAX_ACTIVE_GOALS:
+            return (f'{self.active} accepted goals have not ended yet (at most '
+                    f'{MAX_ACTIVE_GOALS}); send it again later')
+        if hasattr(request, 'poses'):
+            count = goal_count(request)
+            limit = self.node.values['max_waypoints']
+            if count > limit:
+                return (f'follow_waypoints: {len(request.poses)} pose(s) from goal_index '
+                        f'{request.goal_index} and {request.number_of_loops} more loop(s) '
+                        f'make {count} waypoints, more than max_waypoints {limit}')
+        return None
 
     def _cancel(self, handle):
+        mission = self._mission_of(handle)
+        stepper = self.node.stepper
+        if mission is not None and not (stepper is not None and stepper.running()
+                                        and stepper.mission_id == mission):
+            # Its mission has ended (its result is on its way): it ends as that says.
+            return CancelResponse.REJECT
         self._cancels.append(handle)
         self._cancel_ready.trigger()  # fed once the goal is CANCELING (after this returns)
         return CancelResponse.ACCEPT
@@ -96,6 +152,12 @@ class MissionActions:
         return next((m for m, b in self.bindings.items() if b.handle is handle), None)
 
     async def _execute(self, handle):
+        try:
+            return await self._run(handle)
+        finally:
+            self.active -= 1
+
+    async def _run(self, handle):
         action = self._action_of(handle)
         try:
             goals, poses, first = self._goals_of(action, handle.request)
@@ -107,11 +169,12 @@ class MissionActions:
             message = (f'goal ({goals[index][0]:.2f}, {goals[index][1]:.2f}) refused: {why}')
             self.node.report(io.Level.ERROR, message)
             return self._finish(handle, action, False, code, message,
-                                self._missed(poses, first, index, code))
+                                self._missed(poses, first, 0, goals, ended_at=(index, code)))
         binding = Binding(handle, action, goals, poses, first, self.node.now())
         stepper = self.node.stepper
         before = stepper.mission_id
         self.node.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
+        self._unbound.clear()  # a mission that ends within the feed below is this goal's
         event = (io.GoalReceived(goals[0]) if action is ifc.NAVIGATE_TO_POSE
                  else io.GoalsReceived(tuple(goals)))
         self.node.feed(event)
@@ -120,7 +183,8 @@ class MissionActions:
             if not (stepper.running() and tuple(stepper.goal) == tuple(goals[0])):
                 return self._finish(handle, action, False, ifc.UNKNOWN_ERROR,
                                     'the adapter did not take the goal (see its log)',
-                                    self._missed(poses, first, 0, ifc.UNKNOWN_ERROR))
+                                    self._missed(poses, first, 0, goals,
+                                                 ended_at=(0, ifc.UNKNOWN_ERROR)))
             # The goal the mission is walking to: it goes on, under this goal now.
             old = self.bindings.pop(before, None)
             if old is not None:
@@ -128,6 +192,9 @@ class MissionActions:
                     before, False, 'preempted', 'preempted by a new goal (the mission goes '
                     'on under it)', stepper.steps))
         self.bindings[stepper.mission_id] = binding
+        early = self._unbound.pop(stepper.mission_id, None)
+        if early is not None:
+            self.mission_ended(early)
         if handle.is_cancel_requested:  # canceled before its mission started
             self.node.feed(io.CancelRequested('canceled by its action client'))
         ended = await binding.ended
@@ -151,9 +218,11 @@ class MissionActions:
         if first >= len(poses):
             raise conv.MessageError(f'follow_waypoints: goal_index {first} is past the '
                                     f'{len(poses)} poses')
-        path = Path(poses=poses[first:] + poses * int(request.number_of_loops))
+        path = Path(poses=poses)
         path.header.frame_id = poses[0].header.frame_id
-        return list(conv.goals_from_path(path, frame)), poses, first
+        # Checked once; the loops repeat the goals, bounded by max_waypoints (_refusal).
+        once = list(conv.goals_from_path(path, frame))
+        return once[first:] + once * int(request.number_of_loops), poses, first
 
     def _problem(self, goals):
         """``(index, error_code, why)`` of the first goal the map rules out, or None."""
@@ -163,8 +232,7 @@ class MissionActions:
         for i, goal in enumerate(goals):
             why = grid.goal_problem(goal)
             if why is not None:
-                code = ifc.GOAL_OUTSIDE_MAP if not grid.in_map(goal) else ifc.GOAL_OCCUPIED
-                return i, code, why
+                return i, self._map_code(goal), why
         return None
 
     # --- what the mission says -------------------------------------------------------------
@@ -216,28 +284,49 @@ class MissionActions:
     def mission_ended(self, ended):
         """The mission ``ended`` (a MissionEnded, released after its save): its goal ends."""
         binding = self.bindings.pop(ended.mission_id, None)
-        if binding is not None and not binding.ended.done():
+        if binding is None:
+            # A topic's goal, or an action goal about to be bound: kept for a while.
+            self._unbound[ended.mission_id] = ended
+            while len(self._unbound) > UNBOUND_KEPT:
+                del self._unbound[next(iter(self._unbound))]
+        elif not binding.ended.done():
             binding.ended.set_result(ended)
 
     def _result(self, binding, ended):
         handle, action = binding.handle, binding.action
         code = ifc.END_ERROR_CODES.get(ended.code, ifc.UNKNOWN_ERROR)
+        if handle.is_cancel_requested:
+            # A cancel accepted is a goal CANCELED, whatever its mission's last step did
+            # (a cancel that comes once the mission has ended is rejected: _cancel).
+            missed = self._missed(binding.poses, binding.first_index, ended.goals_reached,
+                                  binding.goals, ended_at=(ended.goals_reached, code))
+            handle.canceled()
+            return self._message(action, code, ended.reason, missed)
         missed = []
         if not ended.success:
             missed = self._missed(binding.poses, binding.first_index, ended.goals_reached,
-                                  code, len(binding.goals))
-        if ended.code == 'canceled' and handle.is_cancel_requested:
-            handle.canceled()
-            return self._message(action, code, ended.reason, missed)
+                                  binding.goals, ended_at=(ended.goals_reached, code))
         return self._finish(handle, action, ended.success, code, ended.reason, missed)
 
-    def _missed(self, poses, first, reached, code, count=None):
-        """The waypoints of a FollowWaypoints goal not reached, from the ``reached``-th of the
-        mission's goals on (``count`` goals in all)."""
-        count = len(poses) - first if count is None else count
-        return [MissedWaypoint(index=(first + i) % len(poses),
-                               goal=poses[(first + i) % len(poses)], error_code=code)
-                for i in range(reached, count)]
+    def _missed(self, poses, first, reached, goals, ended_at):
+        """The waypoints of a FollowWaypoints goal not reached: the mission's goals from the
+        ``reached``-th on. Each carries its own code: ``ended_at`` is ``(i, code)``, the
+        goal the mission ended at and why; a goal after it that the map rules out, that
+        reason's code; any other, :data:`~sela_ros.nodes.interface.NOT_ATTEMPTED`."""
+        missed = []
+        for i in range(reached, len(goals)):
+            code = ended_at[1] if i == ended_at[0] else self._map_code(goals[i])
+            missed.append(MissedWaypoint(index=(first + i) % len(poses),
+                                         goal=poses[(first + i) % len(poses)],
+                                         error_code=code))
+        return missed
+
+    def _map_code(self, goal):
+        """The code of why the map rules ``goal`` out, or NOT_ATTEMPTED."""
+        grid = self.node.map
+        if grid is None or grid.goal_problem(goal) is None:
+            return ifc.NOT_ATTEMPTED
+        return ifc.GOAL_OUTSIDE_MAP if not grid.in_map(goal) else ifc.GOAL_OCCUPIED
 
     def _finish(self, handle, action, success, code, message, missed):
         if success:

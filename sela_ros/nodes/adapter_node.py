@@ -115,6 +115,11 @@ class SelaAdapter(Node):
             if refusal:
                 self.report(io.Level.ERROR, refusal)
                 return
+        if isinstance(event, io.GoalsReceived) and len(event.goals) > self.values[
+                'max_waypoints']:
+            self.report(io.Level.ERROR, f'goal path refused: {len(event.goals)} poses, more '
+                        f"than max_waypoints {self.values['max_waypoints']}")
+            return
         self.feed(event)
 
     @guard

@@ -57,10 +57,20 @@ PARAMETERS = (
          'steps', low=0.0, high=1e6, word=NONE, read_only=True),
     Spec('max_steps', StepperConfig.max_steps, 'steps before a mission is declared failed',
          low=1, high=10**9),
+    Spec('max_waypoints', 1000, 'goals in one mission at most (goal_path poses, or '
+         "follow_waypoints' poses times its loops): a longer one is refused", low=1,
+         high=10**6),
     Spec('detector_timeout', StepperConfig.detector_timeout, "wall time to wait for the "
          "detector's verdict on an outcome", low=0.001, high=3600.0, unit=' s'),
     Spec('outcome_timeout', StepperConfig.outcome_timeout, 'wall time to wait for the '
          'outcome of a command before sending it again', low=0.001, high=3600.0, unit=' s'),
+    Spec('outcome_attempts', StepperConfig.outcome_attempts, 'sends of one command with no '
+         'outcome before the mission fails (the simulator or the robot does not answer)',
+         low=1, high=1000),
+    Spec('outcome.max_refused', StepperConfig.max_refused_steps, 'steps in a row whose outcome '
+         'is refused (implausible, or from elsewhere than the pose the step was planned from) '
+         'before the mission fails; each is followed by a fresh plan from where odometry '
+         'puts the robot', low=1, high=1000),
     Spec('adapt_on_start', StepperConfig.adapt_on_start, 'learn from the first step (false: '
          'trust the map until the damage detector fires)', read_only=True),
     Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
@@ -102,12 +112,14 @@ SELA_NAMES = {'priors.max_misfit': 'priors.max.misfit',
               'priors.max_misfit_reproduced': 'priors.max.misfit.reproduced'}
 #: Stepper settings, and the type each is read as (changeable at run time: the timings).
 STEPPER_KEYS = {'max_steps': int, 'detector_timeout': float, 'outcome_timeout': float,
+                'outcome_attempts': int, 'outcome.max_refused': int,
                 'adapt_on_start': bool, 'reset_on_fall': bool,
                 'adaptation.on_detection': str, 'outcome.max_displacement': float,
                 'max_observations': int}
 # Parameter name -> StepperConfig field, where they differ.
 _FIELDS = {'adaptation.on_detection': 'on_detection',
-           'outcome.max_displacement': 'max_displacement'}
+           'outcome.max_displacement': 'max_displacement',
+           'outcome.max_refused': 'max_refused_steps'}
 
 
 def sela_config(values):

@@ -187,6 +187,9 @@ GOAL_OCCUPIED = 206
 NO_VALID_PATH = 208
 FAILED_TO_MAKE_PROGRESS = 105
 UNKNOWN_ERROR = 100
+# A waypoint of follow_waypoints the mission ended before (FollowWaypoints' UNKNOWN): its own
+# code when the map rules it out, this one otherwise.
+NOT_ATTEMPTED = 600
 END_ERROR_CODES = {'succeeded': 0, 'canceled': 0, 'preempted': 0, 'no_plan': NO_VALID_PATH,
                    'max_steps': FAILED_TO_MAKE_PROGRESS, 'failed': UNKNOWN_ERROR}
 

@@ -2,12 +2,13 @@
 ``number_of_loops``, the waypoints reported missed, the result codes."""
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from nav2_msgs.action import FollowWaypoints, NavigateToPose
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
-from sela_ros.nodes.adapter_actions import MissionActions
+from sela_ros.nodes.adapter_actions import MissionActions, goal_count
 
 
 @pytest.fixture
@@ -29,9 +30,12 @@ def test_follow_waypoints_starts_at_goal_index_and_loops(actions):
     binding = SimpleNamespace(first_index=first, poses=poses)
     assert [actions._rank(binding, i) for i in range(len(goals))] == [1, 2, 0, 1, 2]
     # Two of the five reached: the rest are missed, each with its rank among the poses.
-    missed = actions._missed(poses, first, 2, ifc.FAILED_TO_MAKE_PROGRESS, len(goals))
+    missed = actions._missed(poses, first, 2, goals, ended_at=(2, ifc.FAILED_TO_MAKE_PROGRESS))
     assert [m.index for m in missed] == [0, 1, 2]
-    assert all(m.error_code == ifc.FAILED_TO_MAKE_PROGRESS for m in missed)
+    # Where the mission ended, why; after it, never attempted.
+    assert [m.error_code for m in missed] == [ifc.FAILED_TO_MAKE_PROGRESS, ifc.NOT_ATTEMPTED,
+                                              ifc.NOT_ATTEMPTED]
+    assert goal_count(goal) == len(goals)
 
 
 @pytest.mark.parametrize('goal, problem', [
@@ -56,7 +60,7 @@ def test_result_codes_are_navs_and_waypoints_carry_their_own(actions):
     nav = actions._message(ifc.NAVIGATE_TO_POSE, ifc.GOAL_OUTSIDE_MAP, 'off the map', [])
     assert (nav.error_code, nav.error_msg) == (204, 'off the map')
     poses = _poses((1, 0), (1, 1))
-    missed = actions._missed(poses, 0, 1, ifc.NO_VALID_PATH)
+    missed = actions._missed(poses, 0, 1, [(1, 0), (1, 1)], ended_at=(1, ifc.NO_VALID_PATH))
     follow = actions._message(ifc.FOLLOW_WAYPOINTS, ifc.NO_VALID_PATH, 'no path', missed)
     assert follow.error_code == FollowWaypoints.Result.UNKNOWN
     assert [(m.index, m.error_code) for m in follow.missed_waypoints] == [(1, 208)]
@@ -64,3 +68,30 @@ def test_result_codes_are_navs_and_waypoints_carry_their_own(actions):
     assert done.error_code == 0 and list(done.missed_waypoints) == []
     assert {code: ifc.END_ERROR_CODES[code] for code in ('succeeded', 'canceled')} == {
         'succeeded': 0, 'canceled': 0}
+
+
+def test_waypoints_refused_before_a_step_are_all_missed_each_with_its_own_code(actions):
+    from sela_ros.core.planning import OccupancyGrid
+
+    actions.node.map = OccupancyGrid(np.zeros((40, 40), bool), 0.1, (-2.0, -2.0))
+    goals = [(0.3, 0.0), (50.0, 50.0), (0.3, 0.3), (60.0, 0.0)]
+    index, code, why = actions._problem(goals)
+    assert (index, code) == (1, ifc.GOAL_OUTSIDE_MAP) and 'off the map' in why
+    missed = actions._missed(_poses(*goals), 0, 0, goals, ended_at=(index, code))
+    assert [(m.index, m.error_code) for m in missed] == [
+        (0, ifc.NOT_ATTEMPTED), (1, ifc.GOAL_OUTSIDE_MAP), (2, ifc.NOT_ATTEMPTED),
+        (3, ifc.GOAL_OUTSIDE_MAP)]
+
+
+def test_a_goal_of_a_million_loops_is_refused_without_expanding_it(actions):
+    actions.node.stepper = object()
+    actions.node.values = {'max_waypoints': 1000}
+    actions.active = 0
+    big = FollowWaypoints.Goal(poses=_poses((1, 0), (1, 1)), goal_index=1,
+                               number_of_loops=10**6)
+    assert goal_count(big) == 1 + 2 * 10**6
+    assert 'make 2000001 waypoints, more than max_waypoints 1000' in actions._refusal(big)
+    assert actions._refusal(FollowWaypoints.Goal(poses=_poses((1, 0)),
+                                                 number_of_loops=999)) is None
+    actions.active = 200
+    assert 'accepted goals have not ended yet' in actions._refusal(NavigateToPose.Goal())

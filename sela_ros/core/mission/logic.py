@@ -9,7 +9,7 @@ import numpy as np
 
 from sela_ros.core.detection import EvidenceConfig
 from sela_ros.core.learning import AUTO, SELA, SE2Motion, SELAConfig
-from sela_ros.core.mission.stepper_io import StepRecord
+from sela_ros.core.mission.stepper_io import StepperConfig, StepRecord
 
 
 def archive_config(archive, config=None) -> SELAConfig:
@@ -67,8 +67,8 @@ class MissionLogic:
             good, and the robot would try it again and again from the start).
     """
 
-    def __init__(self, sela, adapt_on_start=False, reset_on_fall=False, on_detection='reset',
-                 evidence=None):
+    def __init__(self, sela, adapt_on_start=False, reset_on_fall=False,
+                 on_detection=StepperConfig.on_detection, evidence=None):
         if on_detection not in ON_DETECTION:
             raise ValueError(f'adaptation.on_detection must be one of {ON_DETECTION}, got '
                              f'{on_detection!r}')

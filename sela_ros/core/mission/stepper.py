@@ -80,6 +80,7 @@ class MissionStepper:
         self._deadline = None  # of the reset
         self.cancel = None  # why the mission ends after the running gait (a cancel)
         self._attempts = 1  # of the next plan request (the planner did not answer before)
+        self.refused_steps = 0  # steps in a row whose outcomes were all refused
         self.prior = 'intact'  # the GPs' prior mean: the intact map or a damage prior
         self._handlers = {
             io.GoalReceived: self._on_goal, io.GoalsReceived: self._on_goals,
@@ -243,11 +244,15 @@ class MissionStepper:
             check_outcome(event.generic_reward, start, event.end_pose,
                           OutcomeLimits(self.config.max_displacement), expected_start=p.pose)
         except ImplausibleOutcome as exc:
-            # Never learnt, never a pose to start from; the command is sent again after
-            # outcome_timeout unless a plausible outcome comes first.
+            # Never learnt, never a pose to start from. A plausible outcome may still come
+            # (a forged one may overtake the real one); if none has by outcome_timeout, the
+            # gait ran from somewhere else than planned: the step starts again, from
+            # odometry (_on_tick), never the same gait resent.
+            p.refused = str(exc)
             return [Report(Level.ERROR, f'outcome of command {event.behavior_id} refused, not '
                            f'learnt: {exc}')]
         self.resume = None
+        self.refused_steps = 0
         p.t_outcome = now
         self.pose = np.asarray(event.end_pose, dtype=float)
         self.pose_stamp = event.stamp
@@ -369,9 +374,15 @@ class MissionStepper:
                     return self._abandon_restored_gait(self.odom, p.pose) + \
                         self._start_step(now)
                 return self._drop_mission(self.odom, p.pose)
+            if p.refused is not None:
+                return self._refused_step(p)
+            if p.sends >= self.config.outcome_attempts:
+                return self._lost_command(p)
             p.deadline = now + self.config.outcome_timeout
+            p.sends += 1
             return [Report(Level.ERROR, f'no outcome for command {p.behavior_id} within '
-                           f'{self.config.outcome_timeout} s; sending it again'),
+                           f'{self.config.outcome_timeout} s; sending it again '
+                           f'({p.sends}/{self.config.outcome_attempts})'),
                     SendGait(p.behavior_id, p.decision.index, p.decision.predicted_gr,
                              self.logic.prediction_sigma(p.decision), resend=True)]
         if self.state is State.VERDICT and now > p.deadline:
@@ -384,6 +395,35 @@ class MissionStepper:
             return [Report(Level.ERROR, '/sim_bridge/reset did not answer: going on from '
                            'where the robot lies')]
         return []
+
+    def _refused_step(self, p):
+        """Only refused outcomes came for the step in flight: the gait ran, from elsewhere
+        than the step was planned from (or it says what cannot be). The step is over, not
+        learnt; the next one is planned from odometry, or, after ``max_refused_steps`` such
+        steps in a row, the mission fails with the reason."""
+        self.refused_steps += 1
+        self.pose = None  # one rule: no outcome to start from, so odometry
+        self.pending = None
+        self.state = State.DONE if self.ended is not None else State.READY
+        if self.refused_steps >= self.config.max_refused_steps and self.running():
+            self.state = State.READY
+            return self._end(False, 'failed', f'{self.refused_steps} outcome(s) in a row '
+                             f'refused, the latest: {p.refused}', self.current_pose())
+        return [Report(Level.ERROR, f'command {p.behavior_id} only had refused outcomes: '
+                       'the next step is planned from where odometry puts the robot')]
+
+    def _lost_command(self, p):
+        """No outcome came for ``outcome_attempts`` sends of the command: the mission fails
+        (the simulator or the robot does not answer), and the command is no longer awaited."""
+        self.pending = None
+        self.pose = None
+        self.state = State.DONE if self.ended is not None else State.READY
+        if not self.running():
+            return [Report(Level.ERROR, f'no outcome for command {p.behavior_id} after '
+                           f'{p.sends} send(s): no longer awaited')]
+        return self._end(False, 'failed', f'no outcome for command {p.behavior_id} after '
+                         f'{p.sends} send(s) of {self.config.outcome_timeout:g} s each',
+                         self.current_pose())
 
     # --- the cycle -----------------------------------------------------------------------
 

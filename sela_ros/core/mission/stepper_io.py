@@ -217,6 +217,13 @@ class StepperConfig:
 
     max_steps: int = 100
     outcome_timeout: float = 10.0  # then the same command is sent again
+    # Sends of one command with no outcome at all before the mission fails (the simulator
+    # or the robot is not answering).
+    outcome_attempts: int = 6
+    # Steps in a row whose outcome was refused (implausible, or from elsewhere than the pose
+    # the step was planned from) before the mission fails: each is followed by a fresh plan
+    # from where odometry puts the robot.
+    max_refused_steps: int = 3
     detector_timeout: float = 2.0  # then the next step starts without the verdict
     plan_timeout: float = 10.0  # then the plan is asked again
     plan_attempts: int = 3  # plans asked without an answer before the mission fails
@@ -283,3 +290,5 @@ class PendingStep:
     t_sent: float = None
     t_outcome: float = None
     record: StepRecord = None
+    sends: int = 1  # times the command was sent
+    refused: str = None  # why the latest outcome for it was refused

@@ -24,7 +24,7 @@ def _sela():
 
 
 def test_mission_trusts_the_map_until_adapt_then_learns_and_restarts():
-    logic = MissionLogic(_sela())
+    logic = MissionLogic(_sela(), on_detection='reset')
     pose = np.zeros(3)
     d1 = logic.decide(pose, np.array([0.3, 0.0]))
     assert logic.prediction_sigma(d1) == 0.0  # the intact map is trusted

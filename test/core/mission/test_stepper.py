@@ -447,7 +447,7 @@ def test_a_mission_comes_back_with_its_remaining_goals_after_a_restart():
     assert back.stepper.goal_count == 2 and back.stepper.goal_index == 1
 
 
-def test_an_implausible_outcome_is_refused_not_learnt_and_the_command_is_sent_again():
+def test_an_implausible_outcome_is_refused_not_learnt_and_the_step_planned_again_from_odometry():
     d = Driver(adapt_on_start=True, outcome_timeout=5.0)
     gait = only(d.plan(d.start()), SendGait)
     out = d(OutcomeReceived(gait.behavior_id, (1e9, 0.0, 0.0), (1e9, 0.0, 0.0)), dt=3.0)
@@ -456,8 +456,60 @@ def test_an_implausible_outcome_is_refused_not_learnt_and_the_command_is_sent_ag
     assert 'outcome.max_displacement 2 m' in report.message
     assert d.state is State.EXECUTING and not len(d.stepper.sela.observations[0])
     assert d.stepper.current_pose()[0] == 0.0  # never a pose to start from
-    again = only(d(Tick(), dt=3.0), SendGait)
-    assert again.resend and again.behavior_id == gait.behavior_id
+    d(PoseObserved((0.25, 0.0, 0.0), stamp=3.0))  # where the gait really took the robot
+    out = d(Tick(), dt=3.0)
+    assert not of(out, SendGait)  # the gait ran: never sent again
+    request = only(out, RequestPlan)
+    assert request.step == 2 and np.allclose(request.start, (0.25, 0.0, 0.0))
+
+
+def test_a_plausible_outcome_after_a_refused_one_is_learnt():
+    d = Driver(adapt_on_start=True, outcome_timeout=5.0)
+    gait = only(d.plan(d.start()), SendGait)
+    d(OutcomeReceived(gait.behavior_id, (0.2, 0.0, 0.0), (0.2, 0.0, 0.0), start_pose=(
+        -2.0, 0.5, 0.0)), dt=1.0)  # forged: from elsewhere
+    d.outcome(gait)
+    assert d.state is State.VERDICT and len(d.stepper.sela.observations[0]) == 1
+
+
+def test_odometry_that_lies_about_the_start_cannot_wedge_the_mission():
+    """Odometry puts the robot elsewhere than every outcome does: each step is planned from
+    it, each outcome refused, no gait sent twice, and the mission ends with the reason."""
+    d = Driver(adapt_on_start=True, outcome_timeout=5.0, max_refused_steps=3)
+    d.start(goal=(2.0, 0.0), pose=(-2.0, 0.5, 0.0))
+    sent, ended = [], []
+    for _ in range(10):
+        d(PoseObserved((-2.0, 0.5, 0.0), stamp=0.0))
+        requests = of(d.log, RequestPlan)
+        gait = only(d.plan(requests[-1]), SendGait)
+        sent.append(gait.behavior_id)
+        d(OutcomeReceived(gait.behavior_id, FORWARD, (0.2, 0.0, 0.0),
+                          start_pose=(0.0, 0.0, 0.0)), dt=1.0)
+        out = d(Tick(), dt=5.0)
+        ended = of(out, MissionEnded)
+        if ended:
+            break
+    assert len(sent) == 3 and len(set(sent)) == 3
+    assert not any(c.resend for c in of(d.log, SendGait))
+    assert ended[0].code == 'failed' and '3 outcome(s) in a row refused' in ended[0].reason
+    assert 'started the gait away from the pose it was planned from' in ended[0].reason
+    assert d.state is State.DONE
+    # The next goal is taken, from odometry.
+    d(PoseObserved((0.2, 0.0, 0.0), stamp=9.0))
+    assert only(d(GoalReceived((1.0, 0.0))), RequestPlan).start[0] == 0.2
+
+
+def test_an_outcome_that_never_comes_is_sent_a_bounded_number_of_times_then_the_mission_fails():
+    d = Driver(outcome_timeout=5.0, outcome_attempts=3)
+    gait = only(d.plan(d.start()), SendGait)
+    resends = [only(d(Tick(), dt=6.0), SendGait) for _ in range(2)]
+    assert all(r.resend and r.behavior_id == gait.behavior_id for r in resends)
+    out = d(Tick(), dt=6.0)
+    assert not of(out, SendGait)
+    ended = only(out, MissionEnded)
+    assert ended.code == 'failed' and 'after 3 send(s)' in ended.reason
+    assert d.state is State.DONE and d.stepper.snapshot()['mission']['pending'] is None
+    assert d(OutcomeReceived(gait.behavior_id, FORWARD, (0.2, 0.0, 0.0)), dt=1.0) == []
 
 
 def test_a_step_is_saved_before_it_is_announced():
