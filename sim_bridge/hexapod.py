@@ -324,7 +324,23 @@ class Hexapod:
         Returns:
             The gait's :class:`GaitOutcome`.
         """
-        table = controller.target_table(params)[:, self._active_columns]
+        table = controller.target_table(params)
+        return self.execute_targets(table[self._sample_index], callback, callback_period)
+
+    def execute_targets(self, targets, callback: StepCallback | None = None,
+                        callback_period: float = 0.02) -> GaitOutcome:
+        """Run the joint targets of one physics step after another, as :meth:`execute`.
+
+        Args:
+            targets: (n_steps, 18) targets in rad, one row per physics step, columns in
+                ``ALL_JOINT_NAMES`` order (the joints the damage removed or blocked are not
+                driven); the gait lasts ``n_steps * dt``.
+            callback, callback_period: as :meth:`execute`.
+        """
+        targets = np.asarray(targets, dtype=np.float64)
+        if targets.ndim != 2 or targets.shape[1] != len(ALL_JOINT_NAMES) or not len(targets):
+            raise ValueError(f'targets must have shape (n_steps >= 1, {len(ALL_JOINT_NAMES)}), '
+                             f'got {targets.shape}')
         if callback is not None and not (callback_period > 0 and math.isfinite(callback_period)):
             raise ValueError(f'callback_period must be > 0 s, got {callback_period}')
         cid = self._client
@@ -332,7 +348,6 @@ class Hexapod:
         joints = self._active_joints
         forces = self._forces
         gain = 1.0 / controller.SERVO_TIME_CONSTANT
-        sample_index = self._sample_index
         link_to_leg = self._link_to_leg
         ground = self._ground
         callback_every = (max(1, int(round(callback_period / self.dt)))
@@ -343,8 +358,8 @@ class Hexapod:
         n_joints = len(joints)
         # Plain Python lists in the loop: for 18 numbers they beat numpy's call overhead,
         # and this loop runs 720 times per gait.
-        rows = table.tolist()
-        row_of_step = [rows[i] for i in sample_index.tolist()]
+        row_of_step = targets[:, self._active_columns].tolist()
+        n_steps = len(row_of_step)
         get_states = p.getJointStates
         set_motors = p.setJointMotorControlArray
         step = p.stepSimulation
@@ -352,7 +367,7 @@ class Hexapod:
         vel_mode = p.VELOCITY_CONTROL
         n_legs = len(LEG_NAMES)
         contact_steps = [0] * n_legs
-        for k in range(self.n_steps):
+        for k in range(n_steps):
             if n_joints:
                 states = get_states(robot, joints, physicsClientId=cid)
                 velocity = [(t - s[0]) * gain for t, s in zip(row_of_step[k], states)]
@@ -372,16 +387,16 @@ class Hexapod:
                 self._sim_time = start_time + (k + 1) * self.dt
                 pos, vel = self.joint_states()
                 callback(self._sim_time, self.pose(), pos, vel)
-        self._sim_time = start_time + self.n_steps * self.dt
+        self._sim_time = start_time + n_steps * self.dt
         end_pose = self.pose()
-        if callback_every and self.n_steps % callback_every:
+        if callback_every and n_steps % callback_every:
             pos, vel = self.joint_states()
             callback(self._sim_time, end_pose, pos, vel)
         return GaitOutcome(
             generic_reward=generic_reward(start_pose, end_pose),
             start_pose=start_pose,
             end_pose=end_pose,
-            duty_factors=np.array(contact_steps, dtype=np.float64) / self.n_steps,
+            duty_factors=np.array(contact_steps, dtype=np.float64) / n_steps,
             fallen=self.is_fallen(),
             sim_time=self._sim_time,
             standing_start=standing_start,

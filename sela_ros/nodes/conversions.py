@@ -16,6 +16,11 @@ defined in one place (and documented in the README):
   judged, error, mean_error, threshold]``, the detector's judgement of that command's
   outcome (fire 1: damage detected, adapt; mean_error -1 before anything was judged).
 
+* the hardware face (``trajectory_msgs/JointTrajectory`` to a
+  ``joint_trajectory_controller``; ``sensor_msgs/Imu`` and full 3-D ``nav_msgs/Odometry``
+  from the robot): :func:`trajectory_to_msg`, :func:`trajectory_from_msg`, :func:`imu_msg`,
+  :func:`odometry_3d_msg`, :func:`tilt`.
+
 Occupancy grids (``nav_msgs/OccupancyGrid``) are in :mod:`sela_ros.nodes.grid_conversions`.
 """
 import math
@@ -26,7 +31,9 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PoseStamped, Quaternion
 from nav_msgs.msg import Odometry, Path
+from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from sela_ros.core import N_PARAMS, geometry
 from sela_ros.core.mission.stepper_io import (
@@ -343,6 +350,85 @@ def path_to_msg(path_xy, stamp=0.0, frame_id='odom'):
 def path_from_msg(msg):
     xy = [[p.pose.position.x, p.pose.position.y] for p in msg.poses]
     return _finite_array(xy, 'path').reshape(-1, 2)
+
+
+# --- the hardware face ---------------------------------------------------------------------
+
+
+def duration_to_msg(seconds):
+    from builtin_interfaces.msg import Duration
+
+    stamp = time_to_msg(seconds)
+    return Duration(sec=stamp.sec, nanosec=stamp.nanosec)
+
+
+def trajectory_to_msg(names, times, positions):
+    """A JointTrajectory that starts on receipt (stamp 0, as a joint_trajectory_controller
+    reads it): one point per row of ``positions`` at ``times`` s from the start."""
+    msg = JointTrajectory()
+    msg.joint_names = [str(n) for n in names]
+    for t, row in zip(np.asarray(times, float), np.asarray(positions, float)):
+        msg.points.append(JointTrajectoryPoint(positions=row.tolist(),
+                                               time_from_start=duration_to_msg(t)))
+    return msg
+
+
+def trajectory_from_msg(msg):
+    """``(names, times, positions)`` of a JointTrajectory; each point needs one position per
+    joint (velocities, accelerations and efforts are not used). Raises MessageError."""
+    names = list(msg.joint_names)
+    if not names:
+        raise MessageError('joint_trajectory: no joint names')
+    if not msg.points:
+        raise MessageError('joint_trajectory: no points')
+    rows = []
+    for i, point in enumerate(msg.points):
+        if len(point.positions) != len(names):
+            raise MessageError(f'joint_trajectory: point {i} has {len(point.positions)} '
+                               f'positions for {len(names)} joints')
+        rows.append(point.positions)
+    times = [time_from_msg(point.time_from_start) for point in msg.points]
+    return (names, _finite_array(times, 'joint_trajectory times'),
+            _finite_array(rows, 'joint_trajectory positions').reshape(len(times), len(names)))
+
+
+def _quaternion(q):
+    return Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+
+
+def odometry_3d_msg(xyz, quaternion, stamp, frame_id='odom', child_frame_id='base_link'):
+    """Odometry with the body's full pose (height, roll and pitch too): a motion capture's."""
+    msg = Odometry()
+    msg.header.stamp = time_to_msg(stamp)
+    msg.header.frame_id = frame_id
+    msg.child_frame_id = child_frame_id
+    position = msg.pose.pose.position
+    position.x, position.y, position.z = (float(v) for v in xyz)
+    msg.pose.pose.orientation = _quaternion(quaternion)
+    return msg
+
+
+def imu_msg(quaternion, stamp, frame_id='base_link'):
+    """An Imu with the body's orientation only (no rates or accelerations: covariance -1
+    in their first element, as REP-145 says of a field that is not given)."""
+    msg = Imu()
+    msg.header.stamp = time_to_msg(stamp)
+    msg.header.frame_id = frame_id
+    msg.orientation = _quaternion(quaternion)
+    msg.angular_velocity_covariance[0] = -1.0
+    msg.linear_acceleration_covariance[0] = -1.0
+    return msg
+
+
+def tilt(q):
+    """The angle (rad) between the body's z axis and the world's, from an orientation
+    quaternion message; raises MessageError for a non-finite or zero quaternion."""
+    x, y, z, w = _finite_array([q.x, q.y, q.z, q.w], 'orientation', 4)
+    norm2 = x * x + y * y + z * z + w * w
+    if norm2 < 1e-12:
+        raise MessageError('orientation: the quaternion is zero (no orientation given)')
+    up_z = 1.0 - 2.0 * (x * x + y * y) / norm2
+    return math.acos(max(-1.0, min(1.0, up_z)))
 
 
 # --- diagnostics ---------------------------------------------------------------------------
