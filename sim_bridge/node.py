@@ -3,7 +3,10 @@
 Publishes ``/clock`` (it owns sim time), ``/hexapod/odom`` (odom -> base_link),
 ``/hexapod/joint_states``; executes each command on ``/hexapod/behavior`` and answers with
 exactly one ``/hexapod/behavior_outcome`` carrying the command's id; serves
-``/sim_bridge/reset``. ``damage`` can be changed at run time with ``ros2 param set``.
+``/sim_bridge/reset``. With ``interface: trajectory`` it shows the hardware face of a robot
+under ros2_control instead (see :class:`HardwareFace`): joint trajectories in, IMU and an
+external odometry out, and no gait commands or outcomes (the gait executor's).
+``damage`` can be changed at run time with ``ros2 param set``.
 The physics (``sim.dt``, ``sim.gait_duration``, ``sim.solver_iterations``) are those stamped
 in the ``archive`` parameter's file ('' = the archive shipped with the package, the one the
 adapter serves by default; ``none`` = the ``sim.*`` values as given): a map's gaits only do in
@@ -37,6 +40,7 @@ from sim_bridge.environment import RIGHTING_TIME, ObservedHexapod
 from sim_bridge.hexapod import Hexapod
 from sim_bridge.model import hexapod_urdf
 from sim_bridge.settings import SIM_DEFAULTS, read_archive_settings
+from sim_bridge.trajectory import TrajectoryError, check_trajectory, hold_targets
 
 
 def damage_rule(value):
@@ -50,6 +54,7 @@ def damage_rule(value):
     return None
 
 
+INTERFACES = ('behavior', 'trajectory')
 IDLE_PERIOD = 0.1  # s (wall) between state messages while no gait runs
 
 PARAMETERS = (
@@ -84,6 +89,11 @@ PARAMETERS = (
          'righting_time); false: it stays down until /sim_bridge/reset', read_only=True),
     Spec('righting_time', RIGHTING_TIME, 'sim time a fallen robot takes to get up',
          low=0.0, high=600.0, unit=' s', read_only=True),
+    Spec('interface', 'behavior', 'behavior: gaits from the adapter\'s commands, answered with '
+         'outcomes; trajectory: the hardware face of a robot under ros2_control (joint '
+         'trajectories in, IMU and the observed odometry out), for the gait executor',
+         read_only=True, rule=lambda v: None if v in INTERFACES
+         else f'must be one of {", ".join(INTERFACES)}, got {v!r}'),
 )
 
 
@@ -96,7 +106,85 @@ def _has_display():
     return bool(os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY'))
 
 
-class SimBridge(Node):
+# --- the hardware face (interface: trajectory) -------------------------------------------
+
+
+class HardwareFace:
+    """What a robot under ros2_control shows, played by the simulator: a
+    ``joint_trajectory_controller``'s command topic in; ``hexapod/imu`` (the body's
+    orientation) and ``hexapod/odom_observed`` (an external odometry: the observation
+    model's pose, with the body's height and attitude) out, beside the joint states.
+
+    Each trajectory is played as one gait: its points held until the next one's time, with
+    the direct path's servo (:func:`sim_bridge.trajectory.hold_targets`), so a trajectory
+    that samples the gait controller at its own rate does what the command would. The
+    observed pose is drawn, as on the direct path, once at the end of each trajectory: the
+    odometry and IMU stamped with the trajectory's end time show the body as it ended
+    (fallen or not) and the new observed pose, before a fallen robot is righted.
+    A trajectory with unknown joints or targets beyond the joints' limits is refused with
+    an ERROR on diagnostics and moves nothing.
+    """
+
+    def _start_hardware_face(self):
+        self.imu_pub = ifc.publisher(self, ifc.IMU)
+        self.observed_pub = ifc.publisher(self, ifc.ODOM_OBSERVED)
+        ifc.subscription(self, ifc.JOINT_TRAJECTORY, self.trajectory_callback)
+
+    @guard
+    def trajectory_callback(self, msg):
+        try:
+            names, times, positions = conv.trajectory_from_msg(msg)
+            check_trajectory(names, times, positions)
+            if round(times[-1] / self.env.robot.dt) < 1:
+                raise TrajectoryError(f'it lasts {times[-1]} s, less than one physics step')
+        except (conv.MessageError, TrajectoryError) as exc:
+            message = f'rejected trajectory on {ifc.JOINT_TRAJECTORY.name}: {exc}'
+            self.get_logger().error(message)
+            self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
+                DiagnosticStatus.ERROR, 'sim_bridge: trajectory', message,
+                hardware_id='hexapod'), self.env.robot.sim_time))
+            return
+        self._enqueue('trajectory', names, (times, positions))
+
+    def _run_trajectory(self, names, points):
+        times, positions = points
+        targets = hold_targets(names, times, positions, self.env.robot.dt)
+        gait_end = self.env.robot.sim_time + len(targets) * self.env.robot.dt
+        end = []
+        min_gap = 0.0 if self.publish_max_rate is None else 1.0 / self.publish_max_rate
+        last = [time.monotonic()]
+
+        def on_step(sim_time, pose, positions, velocities):
+            if sim_time >= gait_end - 1e-9:  # the end: published once observed
+                end[:] = [sim_time, self.env.robot.base_pose_3d(), positions, velocities]
+                return
+            now = time.monotonic()
+            if now - last[0] >= min_gap:
+                last[0] = now
+                self._publish_state(sim_time, pose, positions, velocities)
+
+        result = self.env.execute_targets(targets, callback=on_step,
+                                          callback_period=self.publish_period)
+        sim_time, (xyz, quaternion), positions, velocities = end
+        if result.fallen:
+            self._report_fall(None)
+        self._publish_joint_states(conv.time_to_msg(sim_time), positions, velocities)
+        self._publish_hardware_state(sim_time, xyz, quaternion)
+        self._publish_state(self.env.robot.sim_time)
+
+    def _publish_hardware_state(self, sim_time, xyz=None, quaternion=None):
+        if xyz is None:
+            xyz, quaternion = self.env.robot.base_pose_3d()
+        self.imu_pub.publish(conv.imu_msg(quaternion, sim_time))
+        # The pose as last observed (held during a gait, as the direct path's observations).
+        x, y, _ = self.env.observed_pose()
+        self.observed_pub.publish(conv.odometry_3d_msg((x, y, xyz[2]), quaternion, sim_time))
+
+
+# --- the simulator's node ------------------------------------------------------------------
+
+
+class SimBridge(HardwareFace, Node):
     def __init__(self):
         super().__init__(ifc.SIM_BRIDGE)
         physics = self._take_archive_physics()
@@ -124,9 +212,13 @@ class SimBridge(Node):
         self.clock_pub = ifc.publisher(self, ifc.CLOCK)
         self.odom_pub = ifc.publisher(self, ifc.ODOM)
         self.joint_pub = ifc.publisher(self, ifc.JOINT_STATES)
-        self.outcome_pub = ifc.publisher(self, ifc.OUTCOME)
         self.diag_pub = ifc.publisher(self, ifc.DIAGNOSTICS)
-        ifc.subscription(self, ifc.BEHAVIOR, self.behavior_callback)
+        self.interface = values['interface']
+        if self.interface == 'trajectory':
+            self._start_hardware_face()
+        else:
+            self.outcome_pub = ifc.publisher(self, ifc.OUTCOME)
+            ifc.subscription(self, ifc.BEHAVIOR, self.behavior_callback)
         ifc.server(self, ifc.RESET, self.reset_callback)
         # For RViz and Foxglove (REP-105): odom -> base_link with every state message, and
         # the robot as it is now (legs removed by the damage are absent), latched. Relative
@@ -145,7 +237,7 @@ class SimBridge(Node):
         self._worker.start()
         self._publish_state(self.env.robot.sim_time)
         self.get_logger().info(f"hexapod ready, damage '{damage}', "
-                               f'noise std {self.env.noise_std} m')
+                               f'noise std {self.env.noise_std} m, interface {self.interface}')
 
     def _take_archive_physics(self):
         """Start-up values of sim.* from the stamp of the archive given at start-up ('' = the
@@ -258,6 +350,8 @@ class SimBridge(Node):
                 with self._sim_lock:
                     if kind == 'gait':
                         self._run_gait(a, b)
+                    elif kind == 'trajectory':
+                        self._run_trajectory(a, b)
                     elif kind == 'reset':
                         self.env.reset()
                         self._publish_state(self.env.robot.sim_time)
@@ -301,7 +395,7 @@ class SimBridge(Node):
         self._publish_state(self.env.robot.sim_time)
 
     def _report_fall(self, behavior_id):
-        values = {'behavior_id': behavior_id,
+        values = {'behavior_id': 'none (a trajectory)' if behavior_id is None else behavior_id,
                   'action': 'righted in place' if self.right_on_fall
                   else 'down until /sim_bridge/reset'}
         self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
@@ -319,6 +413,11 @@ class SimBridge(Node):
             self.tf_pub.publish(ifc.TF.type(transforms=[self._base_transform(odom)]))
         if positions is None:
             positions, velocities = self.env.robot.joint_states()
+        self._publish_joint_states(stamp, positions, velocities)
+        if self.interface == 'trajectory':
+            self._publish_hardware_state(sim_time)
+
+    def _publish_joint_states(self, stamp, positions, velocities):
         js = JointState()
         js.header.stamp = stamp
         js.name = list(self.env.robot.joint_names)
