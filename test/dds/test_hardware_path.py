@@ -147,3 +147,163 @@ def test_executor_refuses_without_odometry_or_controller_and_measures_any_robot(
     assert [o.behavior_id for o in rec.outcomes] == [3]
     timer.cancel()
     assert all(nodes.alive().values()), nodes.logs()
+
+
+HARDWARE = {'sim_bridge': {'interface': 'trajectory'},
+            'gait_executor': {'odometry_topic': ifc.ODOM_OBSERVED.name,
+                              'imu_topic': ifc.IMU.name, 'fall.min_height': 0.03,
+                              'odometry.timeout': 5.0}}
+
+
+def _hardware(overrides, names):
+    merged = {node: {**HARDWARE.get(node, {}), **overrides.get(node, {})}
+              for node in set(HARDWARE) | set(overrides)}
+    return NodeProcesses(merged, names=names)
+
+
+def test_a_mission_through_the_executor_takes_the_direct_paths_gaits_and_outcomes():
+    from test_ros_mission import Watcher, _experiment_runner_mission
+
+    from sim_bridge.environment import ObservedHexapod
+    from sim_bridge.hexapod import Hexapod
+    from sim_bridge.settings import read_archive_settings
+
+    damage, seed, goal = 'remove:middle_right', 7, (1.5, 1.0)
+    nodes = _hardware({'sim_bridge': {'damage': damage, 'seed': seed}},
+                      names=('sim_bridge', 'planner', 'damage_detector', 'sela_adapter',
+                             'gait_executor'))
+    client = Client()
+    try:
+        rec = Recorder(client)
+        watcher = Watcher(client)
+        commands = {}
+        ifc.subscription(client.node, ifc.BEHAVIOR, lambda m: commands.setdefault(
+            conv.behavior_from_msg(m)[1], conv.behavior_from_msg(m)[0]))
+        client.wait_for_publishers([ifc.JOINT_TRAJECTORY.root_name])
+        watcher.send_goal(*goal)
+        client.spin_until(watcher.get_result, 400, 'the end of the mission')
+        assert watcher.get_result().success, (watcher.get_result(), nodes.logs())
+        # Each command: one trajectory of the description's joints, one outcome (the
+        # executor's: the simulator gives none on its hardware face).
+        ids = watcher.commands
+        mine = {o.behavior_id: o for o in watcher.outcomes if o.behavior_id in set(ids)}
+        assert sorted(mine) == sorted(ids) and len(watcher.outcomes) == len(ids)
+        assert len(rec.trajectories) == len(ids)
+        assert all(names == list(tj.joint_names()) for names, _, _ in rec.trajectories)
+        outcomes = [mine[i] for i in ids]
+        assert [o.standing_start for o in outcomes] == [True] + [o.fallen
+                                                                for o in outcomes[:-1]]
+
+        # The direct path, in process, with the simulator's settings and the same noise
+        # seed: the same outcome for every gait.
+        physics = read_archive_settings(default_archive_path())
+        env = ObservedHexapod(Hexapod(damage=damage, **physics), noise_std=0.01, seed=seed)
+        gap = 0.0
+        try:
+            for outcome, behavior_id in zip(outcomes, ids):
+                direct = env.execute(commands[behavior_id])
+                gap = max(gap, np.abs(outcome.generic_reward
+                                      - direct.observed_generic_reward).max())
+                assert np.allclose(outcome.generic_reward, direct.observed_generic_reward,
+                                   atol=1e-9), behavior_id
+                assert np.allclose(outcome.end_pose, direct.observed_end, atol=1e-9)
+                assert outcome.fallen == direct.fallen
+                assert outcome.sim_time == pytest.approx(direct.sim_time, abs=1e-6)
+        finally:
+            env.robot.close()
+        print(f'{len(ids)} gaits through the executor, {sum(o.fallen for o in outcomes)} '
+              f'fallen; largest difference from the direct path {gap:.3g} (noise std 0.01 m)')
+        # And the same decisions as the experiment runner's for that seed.
+        runner = _experiment_runner_mission(damage, seed, goal)
+        assert [s.behavior_index for s in watcher.steps] == runner['behaviors']
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
+
+
+def test_bad_trajectories_move_nothing_and_are_said():
+    tight = [-0.1, 0.1] * len(tj.joint_names())
+    nodes = _hardware({'sim_bridge': {'damage': 'intact'},
+                       'gait_executor': {'joint_limits': tight}},
+                      names=('sim_bridge', 'gait_executor'))
+    client = Client()
+    try:
+        node = client.node
+        rec = Recorder(client)
+        poses = []
+        ifc.subscription(node, ifc.ODOM, lambda m: poses.append(conv.pose_from_odometry(m)))
+        pub = ifc.publisher(node, ifc.JOINT_TRAJECTORY)
+        client.wait_for_publishers([ifc.DIAGNOSTICS.root_name, ifc.ODOM.root_name,
+                                    ifc.OUTCOME.root_name])
+        client.spin_until(lambda: pub.get_subscription_count() > 0, 30, 'the simulator')
+        client.spin_until(lambda: poses, 30, 'odometry')
+        standing = poses[-1]
+        gait = _forward_gait()
+        times, positions = tj.gait_trajectory(gait, 3.0)
+        names = list(tj.joint_names())
+
+        # The simulator as a controller: unknown joints, targets beyond the limits.
+        pub.publish(conv.trajectory_to_msg(names[:-1] + ['rear_right.ankle'], times,
+                                           positions))
+        rec.error('sim_bridge: trajectory', 'unknown joint', "'rear_right.ankle'")
+        beyond = positions.copy()
+        beyond[40, names.index('middle_left.knee')] = 1.2
+        pub.publish(conv.trajectory_to_msg(names, times, beyond))
+        rec.error('sim_bridge: trajectory', 'middle_left.knee at point 40', '1.2000 rad',
+                  'beyond its limits')
+        # The executor: a gait beyond the robot's limits (tighter than the model's here).
+        sent = len(rec.trajectories)
+        rec.command(gait, 5)
+        rec.error('gait_executor: trajectory', 'gait 5 not played', 'beyond its limits')
+        n = len(poses)
+        client.spin_until(lambda: len(poses) > n, 30, 'odometry')
+        assert np.array_equal(poses[-1], standing), (poses[-1], standing)  # nothing moved
+        assert len(rec.trajectories) == sent and not rec.outcomes
+
+        # A good trajectory is played: the robot walks forward.
+        pub.publish(conv.trajectory_to_msg(names, times, positions))
+        client.spin_until(lambda: poses and poses[-1][0] > 0.1, 60, 'the robot walking')
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
+
+
+def test_falls_are_told_from_the_imu_as_the_direct_path_tells_them():
+    from sim_bridge.environment import ObservedHexapod
+    from sim_bridge.hexapod import Hexapod
+    from sim_bridge.settings import read_archive_settings
+
+    damage, seed = 'remove:front_left,remove:rear_left', 3
+    nodes = _hardware({'sim_bridge': {'damage': damage, 'seed': seed}},
+                      names=('sim_bridge', 'gait_executor'))
+    client = Client()
+    try:
+        rec = Recorder(client)
+        client.wait_for_publishers([ifc.OUTCOME.root_name, ifc.DIAGNOSTICS.root_name])
+        archive = load_archive(default_archive_path())
+        # Gait 0 of the shipped map falls with both left legs front and rear gone.
+        gaits = [archive.params[0], _forward_gait(), archive.params[0]]
+        for k, gait in enumerate(gaits):
+            rec.command(gait, 100 + k)
+        client.spin_until(lambda: len(rec.outcomes) == len(gaits), 120, 'the outcomes')
+        physics = read_archive_settings(default_archive_path())
+        env = ObservedHexapod(Hexapod(damage=damage, **physics), noise_std=0.01, seed=seed)
+        try:
+            direct = [env.execute(g) for g in gaits]
+        finally:
+            env.robot.close()
+        assert [o.behavior_id for o in rec.outcomes] == [100, 101, 102]
+        assert direct[0].fallen  # what this test is about
+        for outcome, expected in zip(rec.outcomes, direct):
+            assert outcome.fallen == expected.fallen
+            assert outcome.standing_start == expected.standing_start
+            assert np.allclose(outcome.generic_reward, expected.observed_generic_reward,
+                               atol=1e-9)
+            assert outcome.sim_time == pytest.approx(expected.sim_time, abs=1e-6)
+        rec.error('gait_executor: robot', 'robot fell during gait 100')
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
