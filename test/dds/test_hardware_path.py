@@ -12,6 +12,7 @@ from sela_ros.core.storage import default_archive_path, load_archive
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
 from sim_bridge import trajectory as tj
+from sim_bridge.model import FALL_HEIGHT
 
 from ros_graph import Client, NodeProcesses
 
@@ -151,7 +152,7 @@ def test_executor_refuses_without_odometry_or_controller_and_measures_any_robot(
 
 HARDWARE = {'sim_bridge': {'interface': 'trajectory'},
             'gait_executor': {'odometry_topic': ifc.ODOM_OBSERVED.name,
-                              'imu_topic': ifc.IMU.name, 'fall.min_height': 0.03,
+                              'imu_topic': ifc.IMU.name, 'fall.min_height': FALL_HEIGHT,
                               'odometry.timeout': 5.0}}
 
 
