@@ -18,6 +18,10 @@ from pathlib import Path
 from sela_ros.experiments import arguments
 
 NODES = ('sim_bridge', 'planner', 'damage_detector', 'sela_adapter')
+#: With --interface trajectory: the gait executor on the simulator's hardware face, its
+#: observed odometry and IMU, with the simulator's fall test (as the launch file's).
+SIMULATED_HARDWARE = {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
+                      'fall.min_height': 0.03}
 
 
 def _course(text):
@@ -45,6 +49,10 @@ def build_parser():
                         "visits the course's goals in order")
     parser.add_argument('--seed', type=int, default=0, help='observation-noise seed')
     parser.add_argument('--gui', action='store_true', help="show PyBullet's window")
+    parser.add_argument('--interface', choices=('behavior', 'trajectory'), default='behavior',
+                        help='behavior: the simulator plays the gaits; trajectory: the '
+                        "hardware path, gait_executor on the simulator's ros2_control face "
+                        '(docs/hardware.md)')
     parser.add_argument('--params-file', default=None,
                         help='parameter YAML (default: the installed config/sela.yaml)')
     parser.add_argument('--archive', default='', help='archive file (default: shipped one)')
@@ -89,11 +97,16 @@ def main(argv=None):
     procs = {}
     logs = {}
     try:
-        for name in NODES:
+        hardware = args.interface == 'trajectory'
+        for name in NODES + (('gait_executor',) if hardware else ()):
             cmd = [str(executable(name)), '--ros-args', '--params-file', params_file]
+            if name == 'gait_executor':
+                cmd += [a for key, value in SIMULATED_HARDWARE.items()
+                        for a in ('-p', f'{key}:={value}')]
             if name == 'sim_bridge':
                 cmd += ['-p', f'damage:={damage}', '-p', f'seed:={args.seed}',
-                        '-p', f'sim.gui:={str(args.gui).lower()}']
+                        '-p', f'sim.gui:={str(args.gui).lower()}',
+                        '-p', f'interface:={args.interface}']
                 if args.archive:  # the simulator runs with the map's physics
                     cmd += ['-p', f'archive:={args.archive}']
             if name == 'planner' and map_path:
