@@ -39,9 +39,11 @@ from launch_ros.actions import Node, PushRosNamespace
 CLOCK_REMAP = [('/clock', 'clock')]
 TF_REMAPS = [('/tf', 'tf'), ('/tf_static', 'tf_static')] + CLOCK_REMAP
 # The gait executor on the simulator's hardware face: its observed odometry (the pose the
-# direct path observes) and IMU, and the simulator's fall test (tilt, and the body's height).
+# direct path observes) and IMU, and the simulator's fall test (tilt, and the body's height);
+# the simulator's state comes every 0.5 s of sim time during a gait, slower than real time
+# on a loaded machine: a longer odometry timeout.
 SIMULATED_HARDWARE = {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
-                      'fall.min_height': 0.03}
+                      'fall.min_height': 0.03, 'odometry.timeout': 5.0}
 
 
 def generate_launch_description():

@@ -116,7 +116,7 @@ def test_interface_trajectory_runs_the_hardware_path_in_simulation(launch_descri
     params = executor.kwargs['parameters'][1]
     assert params == SIMULATED_HARDWARE == {  # sela-demo --interface trajectory: the same
         'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
-        'fall.min_height': FALL_HEIGHT}
+        'fall.min_height': FALL_HEIGHT, 'odometry.timeout': 5.0}
     from sela_ros.nodes import interface as ifc
 
     assert (ifc.ODOM_OBSERVED.name, ifc.IMU.name) == ('hexapod/odom_observed', 'hexapod/imu')

@@ -131,7 +131,7 @@ class GaitExecutor(Node):
         self.imu_topic = values['imu_topic']
         self.trajectory_topic = values['trajectory_topic']
 
-        self.queue = deque()  # (behavior_id, params), in the order received
+        self.queue = deque()  # (behavior_id, times, positions), in the order received
         self.gait = None  # the running gait
         self.standing = True  # the next gait starts standing: the first, or after a fall
         self.odom = None  # newest (wall time received, stamp, message)
@@ -182,7 +182,14 @@ class GaitExecutor(Node):
         if behavior_id is None:
             behavior_id = self._next_auto_id
             self._next_auto_id += 1
-        self.queue.append((behavior_id, params))
+        try:  # checked now: a gait the robot must not play is refused at once
+            times, positions = tj.gait_trajectory(params, self.duration, self.rate)
+            tj.check_trajectory(self.names, times, positions, known=self.names,
+                                limits=self.limits)
+        except ValueError as exc:  # TrajectoryError included
+            self._error('trajectory', f'gait {behavior_id} not played: {exc}')
+            return
+        self.queue.append((behavior_id, times, positions))
         self.tick()
 
     @guard
@@ -218,7 +225,7 @@ class GaitExecutor(Node):
                 if not self._ready(now):
                     return
             except _Refused as exc:
-                behavior_id, _ = self.queue.popleft()
+                behavior_id = self.queue.popleft()[0]
                 self._error(exc.what, f'gait {behavior_id} not played: {exc}')
                 continue
             self._start(*self.queue.popleft(), now)
@@ -249,15 +256,8 @@ class GaitExecutor(Node):
                            'outcome_timeout')
         return self.odom is not None and (self.finished is None or self.odom[0] > self.finished)
 
-    def _start(self, behavior_id, params, now):
+    def _start(self, behavior_id, times, positions, now):
         refused = f'gait {behavior_id} not played'
-        try:
-            times, positions = tj.gait_trajectory(params, self.duration, self.rate)
-            tj.check_trajectory(self.names, times, positions, known=self.names,
-                                limits=self.limits)
-        except ValueError as exc:  # TrajectoryError included
-            self._error('trajectory', f'{refused}: {exc}')
-            return
         if self.trajectory_pub.get_subscription_count() == 0:
             self._error('controller', f'{refused}: nothing subscribes to '
                         f'{self.trajectory_pub.topic_name}: is the '

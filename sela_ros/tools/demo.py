@@ -19,9 +19,11 @@ from sela_ros.experiments import arguments
 
 NODES = ('sim_bridge', 'planner', 'damage_detector', 'sela_adapter')
 #: With --interface trajectory: the gait executor on the simulator's hardware face, its
-#: observed odometry and IMU, with the simulator's fall test (as the launch file's).
+#: observed odometry and IMU, with the simulator's fall test (as the launch file's). The
+#: simulator's state comes every publish_period (0.5 s) of sim time during a gait, which a
+#: loaded machine may stretch past a second of wall time: a longer odometry.timeout.
 SIMULATED_HARDWARE = {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
-                      'fall.min_height': 0.03}
+                      'fall.min_height': 0.03, 'odometry.timeout': 5.0}
 
 
 def _course(text):

@@ -11,8 +11,8 @@ from sela_ros.core.geometry import generic_reward
 from sela_ros.core.storage import default_archive_path, load_archive
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+from sela_ros.tools.demo import SIMULATED_HARDWARE
 from sim_bridge import trajectory as tj
-from sim_bridge.model import FALL_HEIGHT
 
 from ros_graph import Client, NodeProcesses
 
@@ -47,6 +47,14 @@ class Recorder:
                          and all(w in m for w in words)), None)
         self.client.spin_until(found, timeout, f'an error {name} saying {words}: {self.errors}')
         return found()
+
+    def wait_for_odometry(self, topic=ifc.ODOM_OBSERVED, count=5):
+        """Until this client has heard ``count`` messages of the executor's odometry (the
+        executor, started first, hears them too: a gait sent before would be refused)."""
+        heard = []
+        sub = ifc.subscription(self.client.node, topic, heard.append)
+        self.client.spin_until(lambda: len(heard) >= count, 60, f'odometry on {topic.name}')
+        self.client.node.destroy_subscription(sub)
 
     def command(self, params, behavior_id):
         self.client.spin_until(lambda: self.behavior_pub.get_subscription_count() > 0, 30,
@@ -150,10 +158,8 @@ def test_executor_refuses_without_odometry_or_controller_and_measures_any_robot(
     assert all(nodes.alive().values()), nodes.logs()
 
 
-HARDWARE = {'sim_bridge': {'interface': 'trajectory'},
-            'gait_executor': {'odometry_topic': ifc.ODOM_OBSERVED.name,
-                              'imu_topic': ifc.IMU.name, 'fall.min_height': FALL_HEIGHT,
-                              'odometry.timeout': 5.0}}
+# As the launch file and sela-demo run it (test_launch_and_config checks they agree).
+HARDWARE = {'sim_bridge': {'interface': 'trajectory'}, 'gait_executor': SIMULATED_HARDWARE}
 
 
 def _hardware(overrides, names):
@@ -254,6 +260,7 @@ def test_bad_trajectories_move_nothing_and_are_said():
         rec.error('sim_bridge: trajectory', 'middle_left.knee at point 40', '1.2000 rad',
                   'beyond its limits')
         # The executor: a gait beyond the robot's limits (tighter than the model's here).
+        rec.wait_for_odometry()
         sent = len(rec.trajectories)
         rec.command(gait, 5)
         rec.error('gait_executor: trajectory', 'gait 5 not played', 'beyond its limits')
@@ -283,6 +290,7 @@ def test_falls_are_told_from_the_imu_as_the_direct_path_tells_them():
     try:
         rec = Recorder(client)
         client.wait_for_publishers([ifc.OUTCOME.root_name, ifc.DIAGNOSTICS.root_name])
+        rec.wait_for_odometry()
         archive = load_archive(default_archive_path())
         # Gait 0 of the shipped map falls with both left legs front and rear gone.
         gaits = [archive.params[0], _forward_gait(), archive.params[0]]
@@ -308,3 +316,19 @@ def test_falls_are_told_from_the_imu_as_the_direct_path_tells_them():
     finally:
         client.close()
         nodes.stop()
+
+
+@pytest.mark.parametrize('value, says', [
+    ('[front_left.hip_yaw, front_left.knee]', 'joint_names must name the 18 joints'),
+    ('[' + ', '.join(['same'] * 18) + ']', 'joint_names must be distinct'),
+])
+def test_joint_names_that_are_not_the_descriptions_stop_the_executor(value, says, ros_env):
+    import subprocess
+
+    from sela_ros.tools.ros_env import executable
+
+    proc = subprocess.run([str(executable('gait_executor')), '--ros-args', '-p',
+                           f'joint_names:={value}'], env=ros_env, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert says in proc.stderr and 'not started' in proc.stderr, proc.stderr
