@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim_bridge.hexapod import generic_reward  # afun, the same as the simulator's
+from sim_bridge.simulator import generic_reward  # afun, the same as the simulator's
 
 #: Sim seconds a fallen robot takes to get up where it lies (one gait's time).
 RIGHTING_TIME = 3.0

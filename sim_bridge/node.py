@@ -1,4 +1,8 @@
-"""The ``sim_bridge`` node: the PyBullet hexapod on the ROS graph.
+"""The ``sim_bridge`` node: a simulated robot (the PyBullet hexapod by default) on the ROS graph.
+
+``robot`` names its description (:mod:`sim_bridge.robots`: ``hexapod``, ``a1``); the topic
+and service names are the same whatever the robot (another robot's stack runs in a namespace
+of its own, docs/ros.md).
 
 Publishes ``/clock`` (it owns sim time), ``/hexapod/odom`` (odom -> base_link),
 ``/hexapod/joint_states``; executes each command on ``/hexapod/behavior`` and answers with
@@ -8,8 +12,8 @@ under ros2_control instead (see :class:`HardwareFace`): joint trajectories in, I
 external odometry out, and no gait commands or outcomes (the gait executor's).
 ``damage`` can be changed at run time with ``ros2 param set``.
 The physics (``sim.dt``, ``sim.gait_duration``, ``sim.solver_iterations``) are those stamped
-in the ``archive`` parameter's file ('' = the archive shipped with the package, the one the
-adapter serves by default; ``none`` = the ``sim.*`` values as given): a map's gaits only do in
+in the ``archive`` parameter's file ('' = the robot's shipped archive, for the hexapod the one
+the adapter serves by default; ``none`` = the ``sim.*`` values as given): a map's gaits only do in
 simulation what the map says with the settings it was built with.
 
 Gaits run on a worker thread that owns the simulator, so the node's single-threaded
@@ -35,33 +39,52 @@ from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
-from sim_bridge.damage import DamageSpecError, parse_damage
+from sim_bridge.damage import DamageSpecError
 from sim_bridge.environment import RIGHTING_TIME, ObservedHexapod
-from sim_bridge.hexapod import Hexapod
-from sim_bridge.model import hexapod_urdf
+from sim_bridge.robots import DEFAULT_ROBOT, ROBOTS, get_robot
 from sim_bridge.settings import SIM_DEFAULTS, read_archive_settings
+from sim_bridge.simulator import Simulator
 from sim_bridge.trajectory import TrajectoryError, check_trajectory, hold_targets
 
 
-def damage_rule(value):
-    """A damage spec users can type; the error lists the valid names."""
+def damage_rule(value, robot=None):
+    """A damage spec users can type for ``robot`` (a description; None: the hexapod); the
+    error lists the valid names."""
+    description = get_robot(robot)
     if not isinstance(value, str):
-        return f'must be a string such as remove:middle_right, got {value!r}'
+        return f'must be a string such as {description.default_damage}, got {value!r}'
     try:
-        parse_damage(value)
+        description.parse_damage(value)
     except DamageSpecError as exc:
         return f'is invalid: {exc}'
     return None
+
+
+def robot_rule(value):
+    """A robot the stack has a description of."""
+    try:
+        get_robot(value)
+    except ValueError as exc:
+        return f'is invalid: {exc}'
+    return None
+
+
+def _damage_spec(description):
+    return Spec('damage', description.default_damage,
+                'what is broken; can change at run time: intact, '
+                'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], '
+                'weaken:<leg>.<joint>[=torque share], comma-joined (the robot\'s leg and joint '
+                'names; the default is the robot\'s)',
+                rule=lambda value: damage_rule(value, description))
 
 
 INTERFACES = ('behavior', 'trajectory')
 IDLE_PERIOD = 0.1  # s (wall) between state messages while no gait runs
 
 PARAMETERS = (
-    Spec('damage', 'remove:middle_right', 'what is broken; can change at run time: intact, '
-         'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], '
-         'weaken:<leg>.<joint>[=torque share], comma-joined',
-         rule=damage_rule),
+    Spec('robot', DEFAULT_ROBOT, f'the simulated robot: {", ".join(ROBOTS)} or '
+         'package.module:DESCRIPTION (docs/robots.md)', read_only=True, rule=robot_rule),
+    _damage_spec(get_robot(DEFAULT_ROBOT)),
     Spec('sim.dt', 1.0 / 240.0, 'physics step; must match the archive', low=1e-4, high=0.05,
          unit=' s', read_only=True),
     Spec('sim.gait_duration', 3.0, 'duration of one behaviour', low=0.1, high=60.0, unit=' s',
@@ -70,9 +93,9 @@ PARAMETERS = (
          'solver iterations per step; must match the archive', low=1, high=1000,
          read_only=True),
     Spec('archive', '', 'an archive file whose stamped physics (dt, gait duration, solver '
-         'iterations) replace the sim.* values; "" = the shipped archive (as the adapter), '
-         '"8d"/"2d" = the shipped ones by name, "none" = use the sim.* values',
-         read_only=True),
+         'iterations) replace the sim.* values; "" = the robot\'s shipped archive (the '
+         'hexapod\'s as the adapter), "8d"/"2d"/"a1" = the shipped ones by name, "none" = use '
+         'the sim.* values', read_only=True),
     Spec('sim.gui', False, "PyBullet's window (needs a display)", read_only=True,
          rule=lambda v: None if not v or _has_display() else 'needs a display (DISPLAY and '
          'WAYLAND_DISPLAY are not set); use sim.gui:=false for headless DIRECT mode'),
@@ -106,6 +129,12 @@ def _has_display():
     return bool(os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY'))
 
 
+def parameters_for(description):
+    """The node's parameters with ``damage`` over ``description``'s names and default."""
+    return tuple(_damage_spec(description) if spec.name == 'damage' else spec
+                 for spec in PARAMETERS)
+
+
 # --- the hardware face (interface: trajectory) -------------------------------------------
 
 
@@ -134,7 +163,7 @@ class HardwareFace:
     def trajectory_callback(self, msg):
         try:
             names, times, positions = conv.trajectory_from_msg(msg)
-            check_trajectory(names, times, positions)
+            check_trajectory(names, times, positions, robot=self.description)
             if round(times[-1] / self.env.robot.dt) < 1:
                 raise TrajectoryError(f'it lasts {times[-1]} s, less than one physics step')
         except (conv.MessageError, TrajectoryError) as exc:
@@ -142,13 +171,14 @@ class HardwareFace:
             self.get_logger().error(message)
             self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
                 DiagnosticStatus.ERROR, 'sim_bridge: trajectory', message,
-                hardware_id='hexapod'), self.env.robot.sim_time))
+                hardware_id=self.description.name), self.env.robot.sim_time))
             return
         self._enqueue('trajectory', names, (times, positions))
 
     def _run_trajectory(self, names, points):
         times, positions = points
-        targets = hold_targets(names, times, positions, self.env.robot.dt)
+        targets = hold_targets(names, times, positions, self.env.robot.dt,
+                               robot=self.description)
         gait_end = self.env.robot.sim_time + len(targets) * self.env.robot.dt
         end = []
         min_gap = 0.0 if self.publish_max_rate is None else 1.0 / self.publish_max_rate
@@ -187,14 +217,16 @@ class HardwareFace:
 class SimBridge(HardwareFace, Node):
     def __init__(self):
         super().__init__(ifc.SIM_BRIDGE)
+        self.description = self._take_robot()
         physics = self._take_archive_physics()
-        values = declare(self, PARAMETERS, on_change=self.parameters_callback)
+        values = declare(self, parameters_for(self.description),
+                         on_change=self.parameters_callback)
         if physics:  # said once the parameters are known good (a bad one: one line only)
             self.get_logger().info(physics)
         damage = values['damage']
-        robot = Hexapod(dt=values['sim.dt'], gait_duration=values['sim.gait_duration'],
-                        solver_iterations=values['sim.solver_iterations'],
-                        damage=damage, gui=values['sim.gui'])
+        robot = Simulator(dt=values['sim.dt'], gait_duration=values['sim.gait_duration'],
+                          solver_iterations=values['sim.solver_iterations'],
+                          damage=damage, gui=values['sim.gui'], robot=self.description)
         self.env = ObservedHexapod(robot, values['observation.noise_std'], seed=values['seed'],
                                    right_on_fall=values['right_on_fall'],
                                    righting_time=values['righting_time'])
@@ -236,8 +268,18 @@ class SimBridge(HardwareFace, Node):
         self._worker = threading.Thread(target=self._work_loop, name='gait_worker', daemon=True)
         self._worker.start()
         self._publish_state(self.env.robot.sim_time)
-        self.get_logger().info(f"hexapod ready, damage '{damage}', "
+        self.get_logger().info(f"{self.description.name} ready, damage '{damage}', "
                                f'noise std {self.env.noise_std} m, interface {self.interface}')
+
+    def _take_robot(self):
+        """The description the start-up value of ``robot`` names (the hexapod when none is
+        given; a bad one is reported when ``robot`` is declared)."""
+        overrides = getattr(self, '_parameter_overrides', None)
+        given = overrides.get('robot') if isinstance(overrides, dict) else None
+        try:
+            return get_robot(given.value if given is not None else None)
+        except ValueError:
+            return get_robot(None)
 
     def _take_archive_physics(self):
         """Start-up values of sim.* from the stamp of the archive given at start-up ('' = the
@@ -257,6 +299,9 @@ class SimBridge(HardwareFace, Node):
         value = archive.value if archive is not None else ''
         if not isinstance(value, str) or value.strip().lower() == 'none':
             return None  # a wrongly typed archive is reported when it is declared
+        value = value or self.description.archive
+        if not value:
+            return None  # a robot without a shipped map: the sim.* values
         path = resolve_archive_path(value)
         try:
             settings = read_archive_settings(path)
@@ -273,13 +318,13 @@ class SimBridge(HardwareFace, Node):
     @guard
     def behavior_callback(self, msg):
         try:
-            params, behavior_id = conv.behavior_from_msg(msg)
+            params, behavior_id = conv.behavior_from_msg(msg, self.description.n_params)
         except conv.MessageError as exc:
             message = f'rejected command on /hexapod/behavior: {exc}'
             self.get_logger().error(message)
             self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
-                DiagnosticStatus.ERROR, 'sim_bridge: command', message, hardware_id='hexapod'),
-                self.env.robot.sim_time))
+                DiagnosticStatus.ERROR, 'sim_bridge: command', message,
+                hardware_id=self.description.name), self.env.robot.sim_time))
             return
         if behavior_id is None:
             behavior_id = self._next_auto_id
@@ -315,7 +360,8 @@ class SimBridge(HardwareFace, Node):
         # Called by params.declare with values its check accepted.
         for param in params:
             if param.name == 'damage':
-                self._enqueue('damage', parse_damage(param.value).canonical(), None)
+                self._enqueue('damage', self.description.parse_damage(param.value).canonical(),
+                              None)
             elif param.name == 'observation.noise_std':
                 self._enqueue('noise', float(param.value), None)
             elif param.name == 'publish_period':
@@ -400,7 +446,7 @@ class SimBridge(HardwareFace, Node):
                   else 'down until /sim_bridge/reset'}
         self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
             DiagnosticStatus.ERROR, 'sim_bridge: robot', 'robot fell or flipped', values,
-            hardware_id='hexapod'), self.env.robot.sim_time))
+            hardware_id=self.description.name), self.env.robot.sim_time))
         self.get_logger().error(f'robot fell during behavior {behavior_id}')
 
     def _publish_state(self, sim_time, pose=None, positions=None, velocities=None):
@@ -438,7 +484,7 @@ class SimBridge(HardwareFace, Node):
         return tf
 
     def _publish_description(self, damage):
-        self.description_pub.publish(String(data=hexapod_urdf(damage)))
+        self.description_pub.publish(String(data=self.description.urdf(damage)))
 
     def destroy_node(self):
         self._stop.set()

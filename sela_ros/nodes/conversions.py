@@ -35,7 +35,7 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from sela_ros.core import N_PARAMS, geometry
+from sela_ros.core import geometry
 from sela_ros.core.mission.stepper_io import (
     GoalReceived,
     GoalsReceived,
@@ -46,12 +46,23 @@ from sela_ros.core.mission.stepper_io import (
 from sela_ros.core.validation import finite_array
 
 BEHAVIOR_ID_PREFIX = 'behavior_id='
-OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
-                  'end_x', 'end_y', 'end_yaw', 'fallen', 'sim_time',
-                  'duty_0', 'duty_1', 'duty_2', 'duty_3', 'duty_4', 'duty_5', 'standing_start')
-OUTCOME_LABEL = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS)
+OUTCOME_PREFIX = 'behavior_outcome:'
+#: Most legs an outcome's duty factors may name.
+MAX_LEGS = 64
+
+
+def outcome_fields(legs=6, standing=True):
+    """Fields of an outcome of a robot with ``legs`` feet (one duty factor each)."""
+    return ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
+            'end_x', 'end_y', 'end_yaw', 'fallen', 'sim_time',
+            *(f'duty_{i}' for i in range(legs))) + (('standing_start',) if standing else ())
+
+
+#: The hexapod's outcome (six duty factors); another robot's names its own number of them.
+OUTCOME_FIELDS = outcome_fields()
+OUTCOME_LABEL = OUTCOME_PREFIX + ','.join(OUTCOME_FIELDS)
 #: The outcome without ``standing_start`` (a driver that cannot tell) is read too.
-OUTCOME_LABEL_WITHOUT_STANDING = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS[:-1])
+OUTCOME_LABEL_WITHOUT_STANDING = OUTCOME_PREFIX + ','.join(OUTCOME_FIELDS[:-1])
 PREDICTION_LABEL = 'prediction:behavior_id,dx,dy,dyaw,sigma'
 VERDICT_LABEL = 'verdict:behavior_id,fire,judged,error,mean_error,threshold'
 
@@ -108,9 +119,14 @@ def _finite_array(values, name, length=None):
 # --- behaviour commands --------------------------------------------------------------------
 
 
-def validate_behavior_params(params):
-    """Return the parameters as a (36,) float array, or raise MessageError saying why not."""
-    array = _finite_array(params, 'behavior', N_PARAMS)
+def validate_behavior_params(params, n_params=None):
+    """Return the parameters as a float array, or raise MessageError saying why not.
+
+    ``n_params``: the robot's number of gait parameters (None: any non-empty length)."""
+    array = _finite_array(params, 'behavior', n_params)
+    if not array.size:
+        raise MessageError('behavior: no parameters; expected the gait\'s parameters, each '
+                           'in [0, 1]')
     out = (array < 0.0) | (array > 1.0)
     if out.any():
         i = int(np.flatnonzero(out)[0])
@@ -128,14 +144,16 @@ def behavior_to_msg(params, behavior_id):
     params = validate_behavior_params(params)
     msg = Float64MultiArray()
     msg.layout.dim = [MultiArrayDimension(label=f'{BEHAVIOR_ID_PREFIX}{int(behavior_id)}',
-                                          size=N_PARAMS, stride=N_PARAMS)]
+                                          size=params.size, stride=params.size)]
     msg.data = params.tolist()
     return msg
 
 
-def behavior_from_msg(msg):
-    """Return ``(params, behavior_id)``; ``behavior_id`` is None when the sender gave none."""
-    params = validate_behavior_params(msg.data)
+def behavior_from_msg(msg, n_params=None):
+    """Return ``(params, behavior_id)``; ``behavior_id`` is None when the sender gave none.
+
+    ``n_params``: the robot's number of gait parameters (None: any non-empty length)."""
+    params = validate_behavior_params(msg.data, n_params)
     behavior_id = None
     if msg.layout.dim:
         label = msg.layout.dim[0].label
@@ -164,10 +182,11 @@ def outcome_to_msg(outcome):
               *np.asarray(outcome.start_pose, float), *np.asarray(outcome.end_pose, float),
               1.0 if outcome.fallen else 0.0, float(outcome.sim_time),
               *np.asarray(outcome.duty_factors, float)]
-    label = OUTCOME_LABEL_WITHOUT_STANDING
+    legs = np.asarray(outcome.duty_factors).size
+    label = OUTCOME_PREFIX + ','.join(outcome_fields(legs, standing=False))
     if outcome.standing_start is not None:
         values.append(1.0 if outcome.standing_start else 0.0)
-        label = OUTCOME_LABEL
+        label = OUTCOME_PREFIX + ','.join(outcome_fields(legs))
     msg = Float64MultiArray()
     msg.layout.dim = [MultiArrayDimension(label=label, size=len(values),
                                           stride=len(values))]
@@ -177,19 +196,22 @@ def outcome_to_msg(outcome):
 
 def outcome_from_msg(msg):
     label = msg.layout.dim[0].label if msg.layout.dim else '(no layout)'
-    if label not in (OUTCOME_LABEL, OUTCOME_LABEL_WITHOUT_STANDING):
-        raise MessageError(f'behavior_outcome: layout label {label!r} is not {OUTCOME_LABEL!r}')
-    values = _finite_array(msg.data, 'behavior_outcome',
-                           len(OUTCOME_FIELDS) - (label != OUTCOME_LABEL))
+    fields = label.removeprefix(OUTCOME_PREFIX).split(',')
+    standing = fields[-1] == 'standing_start'
+    legs = sum(f.startswith('duty_') for f in fields[:MAX_LEGS + 20])
+    if not 0 < legs <= MAX_LEGS or label != OUTCOME_PREFIX + ','.join(
+            outcome_fields(legs, standing)):
+        raise MessageError(f'behavior_outcome: layout label {label!r} is not {OUTCOME_LABEL!r} '
+                           '(or the same with another number of duty factors)')
+    values = _finite_array(msg.data, 'behavior_outcome', len(outcome_fields(legs, standing)))
     behavior_id = values[0]
     if behavior_id < 0 or behavior_id != int(behavior_id):
         raise MessageError(f'behavior_outcome: id {behavior_id} is not a non-negative integer')
     return BehaviorOutcome(behavior_id=int(behavior_id), generic_reward=values[1:4].copy(),
                            start_pose=values[4:7].copy(), end_pose=values[7:10].copy(),
                            fallen=bool(values[10] >= 0.5), sim_time=float(values[11]),
-                           duty_factors=values[12:18].copy(),
-                           standing_start=bool(values[18] >= 0.5) if len(values) > 18
-                           else None)
+                           duty_factors=values[12:12 + legs].copy(),
+                           standing_start=bool(values[-1] >= 0.5) if standing else None)
 
 
 def _labelled(label, values):

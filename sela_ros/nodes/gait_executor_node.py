@@ -4,7 +4,8 @@ It stands where the simulator's gait player stands: it takes each command on
 ``hexapod/behavior`` (the same message, the same id) and answers with exactly one
 ``hexapod/behavior_outcome`` carrying that id, so the adapter and the damage detector cannot
 tell it from ``sim_bridge``. Between the two, the gait is a ``trajectory_msgs/JointTrajectory``
-(the gait controller sampled at its own rate: :func:`sim_bridge.trajectory.gait_trajectory`)
+(the robot description's gait controller sampled at its own rate:
+:func:`sim_bridge.trajectory.gait_trajectory`)
 on a ``joint_trajectory_controller``'s topic, and the outcome comes from any
 ``nav_msgs/Odometry`` (motion capture, visual or leg odometry): the pose of the newest
 message before the gait, and that of the first message stamped at or after the gait's end.
@@ -38,8 +39,9 @@ from sela_ros.nodes import interface as ifc
 from sela_ros.nodes.guard import guard
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
-from sela_ros.nodes.params import Spec, declare
+from sela_ros.nodes.params import Spec, StartupParameterError, declare
 from sim_bridge import trajectory as tj
+from sim_bridge.robots import DEFAULT_ROBOT, ROBOTS, get_robot
 
 #: s (wall) between two looks at the running gait's timeouts.
 TICK = 0.02
@@ -47,35 +49,55 @@ TICK = 0.02
 STAMP_EPS = 1e-6
 #: The simulator's fall test: tilted more than 60 deg (sim_bridge.model.FALL_TILT).
 FALL_TILT = math.radians(60.0)
-N_DUTY = 6  # the outcome's duty-factor fields (unknown here: no foot contacts, sent as 0)
+
+
+def _robot_rule(value):
+    try:
+        get_robot(value)
+    except ValueError as exc:
+        return f'is invalid: {exc}'
+    return None
 
 
 def _names_rule(value):
-    expected = len(tj.joint_names())
-    if len(value) != expected:
-        return (f'must name the {expected} joints of the robot description, in its order '
-                f'({", ".join(tj.joint_names())}), got {len(value)} name(s)')
     if len(set(value)) != len(value) or not all(value):
         return 'must be distinct, non-empty names'
     return None
 
 
 def _limits_rule(value):
-    expected = 2 * len(tj.joint_names())
-    if len(value) != expected:
-        return (f'must be {expected} numbers (lower, upper for each joint of joint_names), '
-                f'got {len(value)}')
-    if any(lo > hi for lo, hi in zip(value[0::2], value[1::2])):
-        return 'must have each lower limit <= its upper limit'
+    if len(value) % 2 or any(lo > hi for lo, hi in zip(value[0::2], value[1::2])):
+        return 'must be pairs (lower, upper) with each lower limit <= its upper limit'
     return None
 
 
-def _description_limits():
-    limits = tj.joint_limits()
-    return [float(v) for name in tj.joint_names() for v in limits[name]]
+def _joints(node, description, names, bounds):
+    """``(names, {name: (lower, upper)})`` of the controller's joints, in the description's
+    order; raises StartupParameterError when the parameters do not fit the description."""
+    n = len(description.joint_names)
+    if names and len(names) != n:
+        raise StartupParameterError(
+            f'joint_names must name the {n} joints of the robot description {description.name}'
+            f' in its order ({", ".join(description.joint_names)}), got {len(names)} name(s)',
+            node.get_name())
+    if bounds and len(bounds) != 2 * n:
+        raise StartupParameterError(
+            f'joint_limits must be {2 * n} numbers (lower, upper for each of the {n} joints '
+            f'of {description.name}), got {len(bounds)}', node.get_name())
+    names = list(names or description.joint_names)
+    if bounds:
+        limits = {name: (bounds[2 * i], bounds[2 * i + 1]) for i, name in enumerate(names)}
+    else:
+        own = tj.joint_limits(description)
+        limits = {name: own[joint] for name, joint in zip(names, description.joint_names)
+                  if joint in own}
+    return names, limits
 
 
 PARAMETERS = (
+    Spec('robot', DEFAULT_ROBOT, f'the robot description (its joints, their limits, its gait '
+         f'controller): {", ".join(ROBOTS)} or package.module:DESCRIPTION', read_only=True,
+         rule=_robot_rule),
     Spec('trajectory_topic', ifc.JOINT_TRAJECTORY.name, "the joint_trajectory_controller's "
          'command topic', read_only=True, rule=lambda v: None if v else 'must not be empty'),
     Spec('odometry_topic', 'odom', 'nav_msgs/Odometry of the body in a fixed frame (motion '
@@ -88,13 +110,13 @@ PARAMETERS = (
          "the description's order (not set: the description's names)", read_only=True,
          kind='string_array', rule=_names_rule),
     Spec('joint_limits', None, 'lower, upper limit (rad) of each joint, in joint_names order: '
-         "a gait that goes beyond one is refused (not set: the description's)",
+         "a gait that goes beyond one is refused (not set: the description's URDF's)",
          read_only=True, kind='double_array', rule=_limits_rule),
     Spec('gait_duration', 3.0, "duration of one gait; must be the archive's", low=0.1,
          high=60.0, unit=' s', read_only=True),
-    Spec('trajectory_rate', 100.0, "points per second of the trajectory: the gait "
-         "controller's own sample rate reproduces it exactly", low=1.0, high=10000.0,
-         unit=' Hz', read_only=True),
+    Spec('trajectory_rate', 'auto', "points per second of the trajectory; auto = the gait "
+         "controller's own sample rate (the hexapod's: 100), which reproduces it exactly",
+         low=1.0, high=10000.0, unit=' Hz', read_only=True, word='auto', kind='double'),
     Spec('settle_time', 0.0, "odometry time after the gait's end before its end pose is "
          'taken (latency of a real controller; 0 in simulation, whose time stands still '
          'between gaits)', low=0.0, high=60.0, unit=' s'),
@@ -116,12 +138,12 @@ class GaitExecutor(Node):
     def __init__(self):
         super().__init__(ifc.GAIT_EXECUTOR)
         values = declare(self, PARAMETERS, on_change=self._on_change)
-        self.names = list(values['joint_names'] or tj.joint_names())
-        bounds = values['joint_limits'] or _description_limits()
-        self.limits = {name: (bounds[2 * i], bounds[2 * i + 1])
-                       for i, name in enumerate(self.names)}
+        self.description = get_robot(values['robot'])
+        self.names, self.limits = _joints(self, self.description, values['joint_names'],
+                                          values['joint_limits'])
         self.duration = values['gait_duration']
-        self.rate = values['trajectory_rate']
+        rate = values['trajectory_rate']
+        self.rate = tj.controller_rate(self.description) if rate == 'auto' else float(rate)
         self.settle_time = values['settle_time']
         self.odom_timeout = values['odometry.timeout']
         self.gait_timeout = values['gait_timeout']
@@ -154,7 +176,8 @@ class GaitExecutor(Node):
         self.get_logger().info(
             f'gait executor ready: trajectories on {self.trajectory_pub.topic_name}, odometry '
             f'from {self.odometry_topic}, falls from '
-            f'{self.imu_topic or "the odometry"}, {len(self.names)} joints')
+            f'{self.imu_topic or "the odometry"}, {self.description.name}: '
+            f'{len(self.names)} joints')
 
     def _on_change(self, params):
         for param in params:
@@ -175,7 +198,7 @@ class GaitExecutor(Node):
     @guard
     def behavior_callback(self, msg):
         try:
-            params, behavior_id = conv.behavior_from_msg(msg)
+            params, behavior_id = conv.behavior_from_msg(msg, self.description.n_params)
         except conv.MessageError as exc:
             self._error('command', f'rejected command on {ifc.BEHAVIOR.name}: {exc}')
             return
@@ -183,7 +206,8 @@ class GaitExecutor(Node):
             behavior_id = self._next_auto_id
             self._next_auto_id += 1
         try:  # checked now: a gait the robot must not play is refused at once
-            times, positions = tj.gait_trajectory(params, self.duration, self.rate)
+            times, positions = tj.gait_trajectory(params, self.duration, self.rate,
+                                                  robot=self.description)
             tj.check_trajectory(self.names, times, positions, known=self.names,
                                 limits=self.limits)
         except ValueError as exc:  # TrajectoryError included
@@ -284,7 +308,9 @@ class GaitExecutor(Node):
         outcome = conv.BehaviorOutcome(
             behavior_id=gait.behavior_id, generic_reward=generic_reward(gait.start, end),
             start_pose=gait.start, end_pose=end, fallen=fallen, sim_time=gait.end_stamp,
-            duty_factors=[0.0] * N_DUTY, standing_start=gait.standing_start)
+            # One per leg, unknown here (no foot contacts): 0.
+            duty_factors=[0.0] * len(self.description.legs),
+            standing_start=gait.standing_start)
         self.outcome_pub.publish(conv.outcome_to_msg(outcome))
         if fallen:
             self._error('robot', f'robot fell during gait {gait.behavior_id} (tilt '
