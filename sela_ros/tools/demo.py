@@ -132,7 +132,12 @@ def main(argv=None):
         hardware = args.interface == 'trajectory'
         for name in NODES + (('gait_executor',) if hardware else ()):
             cmd = [str(executable(name)), '--ros-args', '--params-file', params_file]
-            if name == 'gait_executor':
+            if name == 'gait_executor':  # the robot and the gait's length of the map
+                from sela_ros.core.storage import resolve_archive_path
+                from sim_bridge.settings import read_archive_settings
+
+                duration = read_archive_settings(resolve_archive_path(archive))['gait_duration']
+                cmd += ['-p', f'robot:={description.name}', '-p', f'gait_duration:={duration}']
                 cmd += [a for key, value in SIMULATED_HARDWARE.items()
                         for a in ('-p', f'{key}:={value}')]
             if name == 'sim_bridge':
