@@ -41,8 +41,8 @@ from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 from sim_bridge.damage import DamageSpecError
 from sim_bridge.environment import RIGHTING_TIME, ObservedHexapod
-from sim_bridge.robots import DEFAULT_ROBOT, ROBOTS, get_robot
-from sim_bridge.settings import SIM_DEFAULTS, read_archive_settings
+from sim_bridge.robots import DEFAULT_ROBOT, ROBOTS, get_robot, robot_of
+from sim_bridge.settings import SIM_DEFAULTS, physics_settings, read_archive_metadata
 from sim_bridge.simulator import Simulator
 from sim_bridge.trajectory import TrajectoryError, check_trajectory, hold_targets
 
@@ -304,10 +304,16 @@ class SimBridge(HardwareFace, Node):
             return None  # a robot without a shipped map: the sim.* values
         path = resolve_archive_path(value)
         try:
-            settings = read_archive_settings(path)
+            metadata = read_archive_metadata(path)
         except ValueError as exc:
             self.get_logger().error(f'parameter archive: {exc}; using the sim.* parameters')
             return None
+        if robot_of(metadata) != self.description.name:
+            self.get_logger().error(f'parameter archive: {path} is a map of the '
+                                    f'{robot_of(metadata)}, not of the '
+                                    f'{self.description.name}; using the sim.* parameters')
+            return None
+        settings = physics_settings(metadata)
         for name, key in (('sim.dt', 'dt'), ('sim.gait_duration', 'gait_duration'),
                           ('sim.solver_iterations', 'solver_iterations')):
             overrides[name] = Parameter(name, value=settings[key])

@@ -76,6 +76,15 @@ def read_archive_settings(path: str | os.PathLike) -> dict:
     Raises:
         ValueError: no such file, or no readable metadata in it.
     """
+    return physics_settings(read_archive_metadata(path))
+
+
+def read_archive_metadata(path: str | os.PathLike) -> dict:
+    """The JSON metadata of the archive file at ``path`` (its stamp: physics, robot).
+
+    Raises:
+        ValueError: no such file, or no readable metadata in it.
+    """
     try:
         with np.load(path, allow_pickle=False) as npz:
             metadata = json.loads(str(npz['metadata']))
@@ -84,4 +93,4 @@ def read_archive_settings(path: str | os.PathLike) -> dict:
                          f'{type(exc).__name__}: {exc}') from None
     if not isinstance(metadata, dict):
         raise ValueError(f'archive {path}: metadata is not a JSON object')
-    return physics_settings(metadata)
+    return metadata

@@ -26,6 +26,8 @@ from sim_bridge.damage import DamageSpec, Vocabulary, parse_damage
 #: The robots the stack knows by name (``robot`` parameter, ``--robot`` options).
 ROBOTS = {
     'hexapod': 'sim_bridge.robots.hexapod:HEXAPOD',
+    'a1': 'sim_bridge.robots.a1:A1',
+    'toy': 'sim_bridge.robots.toy:TOY',
 }
 DEFAULT_ROBOT = 'hexapod'
 
