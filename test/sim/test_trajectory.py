@@ -10,6 +10,7 @@ from sim_bridge import trajectory as tj
 from sim_bridge.controller import tripod_gait
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.model import ALL_JOINT_NAMES, FALL_TILT, p
+from sim_bridge.robots import ROBOTS, get_robot
 from sim_bridge.settings import FAST_SETTINGS
 
 RNG = np.random.default_rng(3)
@@ -104,3 +105,24 @@ def test_hold_targets_holds_each_point_and_leaves_undriven_joints_standing():
 def test_check_trajectory_refuses_with_a_clear_message(names, times, positions, message):
     with pytest.raises(tj.TrajectoryError, match=message):
         tj.check_trajectory(names, times, positions)
+
+
+@pytest.mark.parametrize('name', sorted(ROBOTS))
+def test_every_robots_gait_is_a_trajectory_within_its_urdf_limits_played_as_the_gait(name):
+    from sim_bridge.simulator import Simulator
+
+    description = get_robot(name)
+    assert tj.joint_limits(name).keys() == set(description.joint_names)
+    gait = description.example_gait()
+    times, positions = tj.gait_trajectory(gait, description.gait_duration, robot=name)
+    assert np.allclose(np.diff(times)[:-1], description.period / description.n_samples)
+    tj.check_trajectory(description.joint_names, times, positions, robot=name)
+    direct, played = (Simulator(robot=description, **FAST_SETTINGS) for _ in range(2))
+    try:
+        a = direct.execute(gait)
+        b = played.execute_targets(tj.hold_targets(description.joint_names, times, positions,
+                                                   played.dt, robot=name))
+        assert np.array_equal(a.end_pose, b.end_pose) and a.fallen == b.fallen
+    finally:
+        direct.close()
+        played.close()
