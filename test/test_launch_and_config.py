@@ -110,13 +110,14 @@ def test_interface_trajectory_runs_the_hardware_path_in_simulation(launch_descri
     assert type(condition).__name__ == 'EqualsSubstitution'
     assert condition.args[0].args[0] == 'interface' and condition.args[1] == 'trajectory'
     # On the simulator's hardware face: its observed odometry and IMU, its fall test.
-    from sela_ros.tools.demo import SIMULATED_HARDWARE
-    from sim_bridge.model import FALL_HEIGHT
+    from sela_ros.tools.demo import simulated_hardware
+    from sim_bridge.robots import get_robot
 
     params = executor.kwargs['parameters'][1]
-    assert params == SIMULATED_HARDWARE == {  # sela-demo --interface trajectory: the same
-        'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
-        'fall.min_height': FALL_HEIGHT, 'odometry.timeout': 5.0}
+    assert {**params, 'robot': 'hexapod', 'fall.tilt': get_robot('hexapod').fall_tilt} == \
+        simulated_hardware(get_robot('hexapod'))  # sela-demo --interface trajectory's
+    assert params == {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
+                      'fall.min_height': 0.03, 'odometry.timeout': 5.0}
     from sela_ros.nodes import interface as ifc
 
     assert (ifc.ODOM_OBSERVED.name, ifc.IMU.name) == ('hexapod/odom_observed', 'hexapod/imu')

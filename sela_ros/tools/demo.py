@@ -19,11 +19,19 @@ from sela_ros.experiments import arguments
 
 NODES = ('sim_bridge', 'planner', 'damage_detector', 'sela_adapter')
 #: With --interface trajectory: the gait executor on the simulator's hardware face, its
-#: observed odometry and IMU, with the simulator's fall test (as the launch file's). The
-#: simulator's state comes every publish_period (0.5 s) of sim time during a gait, which a
-#: loaded machine may stretch past a second of wall time: a longer odometry.timeout.
+#: observed odometry and IMU (with the robot's own fall test: :func:`simulated_hardware`).
+#: The simulator's state comes every publish_period (0.5 s) of sim time during a gait, which
+#: a loaded machine may stretch past a second of wall time: a longer odometry.timeout.
 SIMULATED_HARDWARE = {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
-                      'fall.min_height': 0.03, 'odometry.timeout': 5.0}
+                      'odometry.timeout': 5.0}
+
+
+def simulated_hardware(description):
+    """The gait executor's parameters on the simulator's hardware face for ``description``:
+    :data:`SIMULATED_HARDWARE`, the robot and the simulator's fall test for it."""
+    return {**SIMULATED_HARDWARE, 'robot': description.name,
+            'fall.tilt': float(description.fall_tilt),
+            'fall.min_height': float(description.fall_height)}
 
 
 def _course(text):
@@ -137,8 +145,8 @@ def main(argv=None):
                 from sim_bridge.settings import read_archive_settings
 
                 duration = read_archive_settings(resolve_archive_path(archive))['gait_duration']
-                cmd += ['-p', f'robot:={description.name}', '-p', f'gait_duration:={duration}']
-                cmd += [a for key, value in SIMULATED_HARDWARE.items()
+                cmd += ['-p', f'gait_duration:={duration}']
+                cmd += [a for key, value in simulated_hardware(description).items()
                         for a in ('-p', f'{key}:={value}')]
             if name == 'sim_bridge':
                 cmd += ['-p', f'robot:={description.name}', '-p', f'damage:={damage}',

@@ -11,8 +11,9 @@ from sela_ros.core.geometry import generic_reward
 from sela_ros.core.storage import default_archive_path, load_archive
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
-from sela_ros.tools.demo import SIMULATED_HARDWARE
+from sela_ros.tools.demo import simulated_hardware
 from sim_bridge import trajectory as tj
+from sim_bridge.robots import get_robot
 
 from ros_graph import Client, NodeProcesses
 
@@ -159,7 +160,8 @@ def test_executor_refuses_without_odometry_or_controller_and_measures_any_robot(
 
 
 # As the launch file and sela-demo run it (test_launch_and_config checks they agree).
-HARDWARE = {'sim_bridge': {'interface': 'trajectory'}, 'gait_executor': SIMULATED_HARDWARE}
+HARDWARE = {'sim_bridge': {'interface': 'trajectory'},
+            'gait_executor': simulated_hardware(get_robot('hexapod'))}
 
 
 def _hardware(overrides, names):
@@ -332,3 +334,43 @@ def test_joint_names_that_are_not_the_descriptions_stop_the_executor(value, says
                           text=True, timeout=120)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert says in proc.stderr and 'not started' in proc.stderr, proc.stderr
+
+
+def test_another_robot_takes_the_same_path_the_a1():
+    from sim_bridge.environment import ObservedHexapod
+    from sim_bridge.simulator import Simulator
+
+    a1 = get_robot('a1')
+    seed = 4
+    nodes = NodeProcesses({'sim_bridge': {'robot': 'a1', 'archive': 'none', 'seed': seed,
+                                          'damage': 'intact', 'interface': 'trajectory'},
+                           'gait_executor': simulated_hardware(a1)},
+                          names=('sim_bridge', 'gait_executor'))
+    client = Client()
+    try:
+        rec = Recorder(client)
+        client.wait_for_publishers([ifc.OUTCOME.root_name, ifc.DIAGNOSTICS.root_name])
+        rec.wait_for_odometry()
+        rng = np.random.default_rng(seed)
+        gaits = [a1.example_gait(), rng.uniform(size=a1.n_params)]
+        for k, gait in enumerate(gaits):
+            rec.command(gait, 200 + k)
+        client.spin_until(lambda: len(rec.outcomes) == len(gaits), 120, 'the outcomes')
+        # The A1's joints, at its controller's rate.
+        assert all(names == list(a1.joint_names) for names, _, _ in rec.trajectories)
+        # The direct path with the simulator's sim.* defaults (archive none).
+        env = ObservedHexapod(Simulator(robot=a1), noise_std=0.01, seed=seed)
+        try:
+            direct = [env.execute(g) for g in gaits]
+        finally:
+            env.robot.close()
+        for outcome, expected in zip(rec.outcomes, direct):
+            assert outcome.fallen == expected.fallen
+            assert np.allclose(outcome.generic_reward, expected.observed_generic_reward,
+                               atol=1e-9)
+            assert outcome.duty_factors.shape == (len(a1.legs),)
+        assert rec.outcomes[0].generic_reward[0] > 0.1  # the trot walks forward
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
