@@ -205,6 +205,12 @@ class GaitExecutor(Node):
         if behavior_id is None:
             behavior_id = self._next_auto_id
             self._next_auto_id += 1
+        elif behavior_id in self._pending():
+            # The adapter sends a command again when its outcome is late: the gait is
+            # already on its way (its outcome will come), and a robot must not walk it twice.
+            self._report(DiagnosticStatus.WARN, 'command', f'gait {behavior_id} is already '
+                         'running or queued: the repeated command is not played again')
+            return
         try:  # checked now: a gait the robot must not play is refused at once
             times, positions = tj.gait_trajectory(params, self.duration, self.rate,
                                                   robot=self.description)
@@ -317,10 +323,22 @@ class GaitExecutor(Node):
                         f'{math.degrees(gait.tilt()):.0f} deg, height {position.z:.3f} m)')
         self.tick()
 
+    def _pending(self):
+        """Ids of the gait running and those queued."""
+        return {b for b, _, _ in self.queue} | (
+            {self.gait.behavior_id} if self.gait is not None else set())
+
     def _error(self, what, message):
-        self.get_logger().error(message)
+        self._report(DiagnosticStatus.ERROR, what, message)
+
+    def _report(self, level, what, message):
+        # One logging call per severity: rclpy refuses two severities from one call site.
+        if level == DiagnosticStatus.ERROR:
+            self.get_logger().error(message)
+        else:
+            self.get_logger().warning(message)
         self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
-            DiagnosticStatus.ERROR, f'{ifc.GAIT_EXECUTOR}: {what}', message,
+            level, f'{ifc.GAIT_EXECUTOR}: {what}', message,
             hardware_id=self.trajectory_topic), self.get_clock().now().to_msg()))
 
 
