@@ -8,10 +8,17 @@ Grammar (items joined with ``,``; whitespace ignored; case-insensitive)::
     block:<leg>.<joint>[=<angle>]    joint locked at angle (rad, within its limits), default 0
     weaken:<leg>.<joint>[=<share>]   the joint's motor gives only this share of its torque,
                                      in [0, 1), default 0.1 (a failing servo)
+    friction:<coefficient>           the ground's friction coefficient, in
+                                     [MIN_FRICTION, MAX_FRICTION] (the map was built on 1.0)
+    payload:<kg>[@<x>,<y>]           a mass in (0, MAX_PAYLOAD] kg fixed on top of the body,
+                                     <x>, <y> metres from its centre (within the body's
+                                     footprint), default at the centre
 
 ``<leg>`` and ``<joint>`` are names of the robot's :class:`Vocabulary` (the hexapod's:
-:data:`LEG_NAMES`, :data:`JOINT_NAMES`; another robot's description brings its own).
-Example: ``remove:middle_right,block:front_left.knee``.
+:data:`LEG_NAMES`, :data:`JOINT_NAMES`; another robot's description brings its own, and the
+kinds it takes). Example: ``remove:middle_right,block:front_left.knee``;
+``remove:rear_left,friction:0.5``; ``payload:1.0@0.08,0.05`` (the comma inside a payload's
+position belongs to it).
 """
 from __future__ import annotations
 
@@ -25,7 +32,13 @@ JOINT_NAMES = ('hip_yaw', 'hip_pitch', 'knee')
 JOINT_LIMITS = {'hip_yaw': math.pi / 2, 'hip_pitch': math.pi / 4, 'knee': math.pi / 4}
 DEFAULT_SHORTEN_FACTOR = 0.5
 DEFAULT_WEAKEN_SHARE = 0.1
-KINDS = ('intact', 'remove', 'shorten', 'block', 'weaken')
+KINDS = ('intact', 'remove', 'shorten', 'block', 'weaken', 'friction', 'payload')
+# Friction below 0.05 is ice on which no gait moves; above 5 no ground grips a foot.
+MIN_FRICTION, MAX_FRICTION = 0.05, 5.0
+# The robot weighs 2.5 kg and its motors give 2.5 N m: more than 5 kg it cannot stand under.
+MAX_PAYLOAD = 5.0
+# The payload sits on the body (sim_bridge.model.BODY_SIZE): its centre within the footprint.
+PAYLOAD_X_LIMIT, PAYLOAD_Y_LIMIT = 0.12, 0.10
 
 
 @dataclass(frozen=True)
@@ -62,24 +75,29 @@ def _fmt(x: float) -> str:
 
 @dataclass(frozen=True)
 class DamageSpec:
-    """Parsed damage: removed legs, shortened legs, blocked joints and weakened motors (sorted,
-    hashable).
+    """Parsed damage: removed legs, shortened legs, blocked joints, weakened motors, the
+    ground's friction and a payload (sorted, hashable).
 
     Attributes:
         removed: leg names removed.
         shortened: ``(leg, factor)`` pairs.
         blocked: ``(leg, joint, angle)`` triples.
         weakened: ``(leg, joint, share of the motor's torque)`` triples.
+        friction: the ground's friction coefficient, ``None`` for the nominal ground.
+        payload: ``(kg, x, y)`` of a mass fixed on the body, ``None`` for none.
     """
 
     removed: tuple[str, ...] = ()
     shortened: tuple[tuple[str, float], ...] = ()
     blocked: tuple[tuple[str, str, float], ...] = ()
     weakened: tuple[tuple[str, str, float], ...] = ()
+    friction: float | None = None
+    payload: tuple[float, float, float] | None = None
 
     @property
     def is_intact(self) -> bool:
-        return not (self.removed or self.shortened or self.blocked or self.weakened)
+        return not (self.removed or self.shortened or self.blocked or self.weakened
+                    or self.friction is not None or self.payload is not None)
 
     def canonical(self) -> str:
         """Canonical text form; ``parse_damage(s.canonical()) == s``."""
@@ -89,6 +107,11 @@ class DamageSpec:
         items += [f'shorten:{leg}:{_fmt(f)}' for leg, f in self.shortened]
         items += [f'block:{leg}.{joint}={_fmt(a)}' for leg, joint, a in self.blocked]
         items += [f'weaken:{leg}.{joint}={_fmt(s)}' for leg, joint, s in self.weakened]
+        if self.friction is not None:
+            items.append(f'friction:{_fmt(self.friction)}')
+        if self.payload is not None:
+            kg, x, y = self.payload
+            items.append(f'payload:{_fmt(kg)}@{_fmt(x)},{_fmt(y)}')
         return ','.join(items)
 
     def shorten_factor(self, leg: str) -> float:
@@ -149,11 +172,53 @@ def _joint(rest: str, item: str, kind: str, what: str,
 def _examples(vocabulary: Vocabulary) -> str:
     if vocabulary is HEXAPOD:
         return ('e.g. remove:middle_right, shorten:front_left:0.5, block:rear_right.knee=0.2, '
-                'weaken:front_left.knee=0.3')
+                'weaken:front_left.knee=0.3, friction:0.5, payload:1.0@0.08,0.05')
     leg, joint = vocabulary.legs[0], vocabulary.joints[-1]
     examples = {'remove': f'remove:{leg}', 'shorten': f'shorten:{leg}:0.5',
-                'block': f'block:{leg}.{joint}', 'weaken': f'weaken:{leg}.{joint}=0.3'}
+                'block': f'block:{leg}.{joint}', 'weaken': f'weaken:{leg}.{joint}=0.3',
+                'friction': 'friction:0.5', 'payload': 'payload:1.0'}
     return 'e.g. ' + ', '.join(examples[k] for k in vocabulary.kinds if k in examples)
+
+
+def _items(text: str) -> list[str]:
+    """Split on commas, except the one inside a payload's ``@<x>,<y>``."""
+    items: list[str] = []
+    for raw in text.split(','):
+        if items and items[-1].startswith('payload:') and '@' in items[-1] \
+                and ',' not in items[-1].partition('@')[2] and ':' not in raw:
+            items[-1] += ',' + raw
+        else:
+            items.append(raw)
+    return items
+
+
+def _friction(rest: str, item: str) -> float:
+    value = _number(rest, 'friction coefficient', item)
+    if not MIN_FRICTION <= value <= MAX_FRICTION:
+        raise DamageSpecError(f'friction coefficient in {item!r} must be in '
+                              f'[{MIN_FRICTION}, {MAX_FRICTION}], got {value}')
+    return value
+
+
+def _payload(rest: str, item: str) -> tuple[float, float, float]:
+    mass_text, at, where = rest.partition('@')
+    kg = _number(mass_text, 'payload mass (kg)', item)
+    if not 0.0 < kg <= MAX_PAYLOAD:
+        raise DamageSpecError(f'payload mass in {item!r} must be in (0, {MAX_PAYLOAD}] kg '
+                              f'(the robot weighs 2.5 kg), got {kg}')
+    x = y = 0.0
+    if at:
+        x_text, comma, y_text = where.partition(',')
+        if not comma:
+            raise DamageSpecError(f'payload position in {item!r} must be <x>,<y> in metres '
+                                  f'from the body\'s centre, e.g. payload:1.0@0.08,0.05')
+        x = _number(x_text, 'payload x (m)', item)
+        y = _number(y_text, 'payload y (m)', item)
+        if abs(x) > PAYLOAD_X_LIMIT or abs(y) > PAYLOAD_Y_LIMIT:
+            raise DamageSpecError(
+                f'payload position in {item!r} must lie on the body: |x| <= {PAYLOAD_X_LIMIT}'
+                f' m and |y| <= {PAYLOAD_Y_LIMIT} m, got ({x}, {y})')
+    return kg, x + 0.0, y + 0.0
 
 
 def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD) -> DamageSpec:
@@ -175,8 +240,9 @@ def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD) -> DamageSpec:
     shortened: dict[str, float] = {}
     blocked: dict[tuple[str, str], float] = {}
     weakened: dict[tuple[str, str], float] = {}
-    for raw in spec.replace(' ', '').replace('\t', '').lower().split(','):
-        item = raw
+    friction: float | None = None
+    payload: tuple[float, float, float] | None = None
+    for item in _items(spec.replace(' ', '').replace('\t', '').lower()):
         if item in ('', 'intact', 'none'):
             continue
         kind, _, rest = item.partition(':')
@@ -218,6 +284,17 @@ def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD) -> DamageSpec:
             if weakened.get((leg, joint), share) != share:
                 raise DamageSpecError(f'joint {leg}.{joint} weakened twice to different shares')
             weakened[(leg, joint)] = share
+        elif kind == 'friction':
+            value = _friction(rest, item)
+            if friction is not None and friction != value:
+                raise DamageSpecError('the ground\'s friction given twice with different '
+                                      'coefficients')
+            friction = value
+        elif kind == 'payload':
+            value = _payload(rest, item)
+            if payload is not None and payload != value:
+                raise DamageSpecError('payload given twice differently (one payload at most)')
+            payload = value
         else:
             raise DamageSpecError(
                 f'unknown damage kind {kind.strip()!r} in {item!r}; valid kinds: '
@@ -239,4 +316,6 @@ def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD) -> DamageSpec:
                              key=lambda b: (order[b[0]], jorder[b[1]]))),
         weakened=tuple(sorted(((leg, joint, s) for (leg, joint), s in weakened.items()),
                               key=lambda w: (order[w[0]], jorder[w[1]]))),
+        friction=friction,
+        payload=payload,
     )

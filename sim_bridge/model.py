@@ -55,6 +55,8 @@ BODY_SIZE = (0.24, 0.20, 0.04)
 BODY_MASS = 1.03
 COXA_LENGTH, FEMUR_LENGTH, TIBIA_LENGTH, FOOT_LENGTH = 0.06, 0.085, 0.14, 0.025
 SEGMENT_RADIUS = 0.01
+# A payload (damage ``payload:<kg>@<x>,<y>``) is a block of this size on top of the body.
+PAYLOAD_SIZE = (0.06, 0.06, 0.03)
 # Most leg mass sits in the servos near the hip (yaw + pitch) and at the knee.
 COXA_MASS, FEMUR_MASS, TIBIA_MASS, FOOT_MASS = 0.12, 0.08, 0.03, 0.015
 # Hip mounts (x, |y|) and mount angle away from the lateral direction (rad, + = forward)
@@ -111,7 +113,9 @@ def _joint(name, parent, child, xyz, axis, limit, rpy='0 0 0', fixed_angle=None)
 def hexapod_urdf(damage='intact') -> str:
     """URDF text of the hexapod with ``damage`` applied (removed legs are absent).
 
-    Links: ``base_link``, ``<leg>.coxa``, ``<leg>.femur``, ``<leg>.tibia``, ``<leg>.foot``.
+    Links: ``base_link``, ``<leg>.coxa``, ``<leg>.femur``, ``<leg>.tibia``, ``<leg>.foot``,
+    and ``payload`` when the damage fixes one on the body (the ground's friction is set by
+    :class:`sim_bridge.hexapod.Hexapod`, not in the URDF).
     Each hip_yaw joint frame is turned so that its +x points away from the body along the
     leg, so the same axes serve both sides.
     """
@@ -124,6 +128,15 @@ def hexapod_urdf(damage='intact') -> str:
              f'damage: {spec.canonical()} -->\n',
              '<robot name="sela_hexapod">\n',
              _link('base_link', BODY_MASS, body_inertia, f'<box size="{lx} {ly} {lz}"/>')]
+    if spec.payload is not None:
+        kg, x, y = spec.payload
+        px, py, pz = PAYLOAD_SIZE
+        parts.append(_link('payload', kg, (kg * (py**2 + pz**2) / 12, kg * (px**2 + pz**2) / 12,
+                                           kg * (px**2 + py**2) / 12),
+                           f'<box size="{px} {py} {pz}"/>'))
+        parts.append(f'  <joint name="payload_joint" type="fixed"><parent link="base_link"/>'
+                     f'<child link="payload"/><origin xyz="{x!r} {y!r} {(lz + pz) / 2!r}"/>'
+                     f'</joint>\n')
     r = SEGMENT_RADIUS
     for index, leg in enumerate(LEG_NAMES):
         if leg in spec.removed:

@@ -73,8 +73,9 @@ def _damage_spec(description):
     return Spec('damage', description.default_damage,
                 'what is broken; can change at run time: intact, '
                 'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], '
-                'weaken:<leg>.<joint>[=torque share], comma-joined (the robot\'s leg and joint '
-                'names; the default is the robot\'s)',
+                'weaken:<leg>.<joint>[=torque share], friction:<ground coefficient>, '
+                'payload:<kg>[@<x>,<y> m from the body centre], comma-joined (the kinds and the '
+                'leg and joint names the robot takes; the default is the robot\'s)',
                 rule=lambda value: damage_rule(value, description))
 
 

@@ -144,6 +144,10 @@ class Simulator:
         description = self.description
         self._robot = description.spawn(p, cid, spec)
         self.damage = spec
+        # The ground's friction is part of the damage (``friction:<coefficient>``).
+        p.changeDynamics(self._ground, -1, physicsClientId=cid,
+                         lateralFriction=description.ground_friction if spec.friction is None
+                         else spec.friction)
         self._index_joints()
         for link in self._foot_links:
             if link >= 0:

@@ -55,7 +55,7 @@ class A1Description(RobotDescription):
                         for joint in JOINTS)
     foot_links = tuple(f'{PREFIX[leg]}_toe' for leg in LEGS)
     vocabulary = Vocabulary(LEGS, JOINTS, LIMITS, block_default=dict(STAND),
-                            kinds=('intact', 'shorten', 'block', 'weaken'))
+                            kinds=('intact', 'shorten', 'block', 'weaken', 'friction'))
     model_version = 'a1-pybullet-data-v1'
     controller_version = 'a1-periodic-v1'
     n_samples = controller.N_SAMPLES

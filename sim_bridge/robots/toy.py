@@ -48,7 +48,7 @@ class ToyDescription(RobotDescription):
     joint_names = tuple(f'{leg}.hip' for leg in LEGS)
     foot_links = tuple(f'{leg}.foot' for leg in LEGS)
     vocabulary = Vocabulary(LEGS, ('hip',), {'hip': (-HIP_LIMIT, HIP_LIMIT)},
-                            kinds=('intact', 'shorten', 'block', 'weaken'))
+                            kinds=('intact', 'shorten', 'block', 'weaken', 'friction'))
     model_version = 'toy-v1'
     controller_version = 'toy-square-v1'
     n_samples = controller.N_SAMPLES

@@ -102,6 +102,10 @@ def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
     # Parameters: invalid values are rejected with a reason, the old value kept.
     r = _set(client, 'sim_bridge', 'damage', 'remove:leg7', ParameterType.PARAMETER_STRING)
     assert not r.successful and 'valid' in r.reason
+    for bad, reason in (('friction:-0.5', 'friction coefficient'),
+                        ('remove:rear_left,payload:500@0.08,0.05', 'payload mass')):
+        r = _set(client, 'sim_bridge', 'damage', bad, ParameterType.PARAMETER_STRING)
+        assert not r.successful and reason in r.reason, r.reason
     r = _set(client, 'planner', 'planner.inflation', -1.0, ParameterType.PARAMETER_DOUBLE)
     assert not r.successful and 'inflation' in r.reason
     r = _set(client, 'damage_detector', 'detection.window', 0,

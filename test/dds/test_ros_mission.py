@@ -175,6 +175,9 @@ def test_every_service_answers(graph):
 
     bad = _set_param(client, 'sim_bridge', 'damage', 'remove:middle_centre')
     assert not bad.successful and 'middle_right' in bad.reason  # lists the valid legs
+    good = _set_param(client, 'sim_bridge', 'damage',
+                      'remove:rear_left,friction:0.5,payload:1.0@0.08,0.05')
+    assert good.successful
     good = _set_param(client, 'sim_bridge', 'damage', 'shorten:front_left:0.5')
     assert good.successful
 

@@ -37,6 +37,33 @@ def test_a_weakened_motor_gives_a_share_of_its_torque():
     assert spec.canonical() == 'weaken:front_left.knee=0.1,weaken:rear_right.hip_pitch=0.25'
 
 
+def test_friction_and_payload_combine_with_the_other_kinds():
+    spec = parse_damage('remove:rear_left, friction:0.5, payload:1.0@0.08,0.05')
+    assert spec.removed == ('rear_left',) and spec.friction == 0.5
+    assert spec.payload == (1.0, 0.08, 0.05) and not spec.is_intact
+    assert spec.canonical() == 'remove:rear_left,friction:0.5,payload:1.0@0.08,0.05'
+    # The comma inside the payload's position belongs to it, wherever the item stands.
+    assert parse_damage('payload:1.0@0.08,0.05,shorten:front_right:0.5,friction:0.3') == \
+        parse_damage('friction:0.3,shorten:front_right:0.5,payload:1@0.08,0.05')
+    assert parse_damage('payload:0.4').payload == (0.4, 0.0, 0.0)
+    assert parse_damage('friction:0.3').canonical() == 'friction:0.3'
+
+
+@pytest.mark.parametrize('text, reason', [
+    ('friction:-0.5', 'friction coefficient'), ('friction:0', 'friction coefficient'),
+    ('friction:nan', 'finite'), ('friction:inf', 'finite'), ('friction:', 'number'),
+    ('friction:50', 'friction coefficient'), ('friction:0.5,friction:0.3', 'twice'),
+    ('payload:-1', 'payload mass'), ('payload:0', 'payload mass'),
+    ('payload:nan@0,0', 'finite'), ('payload:500', 'robot weighs'),
+    ('payload:1.0@0.08', '<x>,<y>'), ('payload:1.0@0.5,0.0', 'on the body'),
+    ('payload:1.0@0.0,-0.2', 'on the body'), ('payload:1.0@x,0', 'payload x'),
+    ('payload:1.0,payload:2.0', 'one payload'),
+])
+def test_a_bad_friction_or_payload_is_refused_with_the_reason(text, reason):
+    with pytest.raises(DamageSpecError, match=reason):
+        parse_damage(text)
+
+
 def test_order_does_not_matter():
     a = parse_damage('remove:rear_right,remove:front_left,block:middle_left.hip_yaw=0.2')
     b = parse_damage('block:middle_left.hip_yaw=0.2,remove:front_left,remove:rear_right')
@@ -48,7 +75,7 @@ def test_order_does_not_matter():
     ('shorten:leg7', LEG_NAMES),
     ('block:front_left.ankle', JOINT_NAMES),
     ('block:front_left', JOINT_NAMES),
-    ('break:front_left', ('remove', 'shorten', 'block', 'weaken')),
+    ('break:front_left', ('remove', 'shorten', 'block', 'weaken', 'friction', 'payload')),
     ('weaken:front_left.ankle=0.2', JOINT_NAMES),
 ])
 def test_unknown_names_list_valid_ones(text, names):
@@ -86,6 +113,9 @@ _item = st.one_of(
         lambda t: f'block:{t[0]}.{t[1]}={t[2]!r}'),
     st.tuples(_legs, st.sampled_from(JOINT_NAMES), st.floats(0.0, 0.99)).map(
         lambda t: f'weaken:{t[0]}.{t[1]}={t[2]!r}'),
+    st.floats(0.05, 5.0).map(lambda f: f'friction:{f!r}'),
+    st.tuples(st.floats(0.01, 5.0), st.floats(-0.12, 0.12), st.floats(-0.1, 0.1)).map(
+        lambda t: f'payload:{t[0]!r}@{t[1]!r},{t[2]!r}'),
 )
 
 

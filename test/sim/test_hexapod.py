@@ -236,6 +236,41 @@ def test_a_limp_joint_lags_its_commands_and_changes_the_walk(intact_outcome):
     assert np.linalg.norm(weak.generic_reward - intact_outcome.generic_reward) > 0.01
 
 
+def test_a_payload_adds_its_mass_where_it_was_put(sim):
+    sim.set_damage('payload:1.0@0.08,0.05')
+    try:
+        assert math.isclose(sim.total_mass(), 3.5, abs_tol=1e-9)
+        cid, rid = sim.client_id, sim.robot_id
+        names = {p.getJointInfo(rid, j, physicsClientId=cid)[12].decode(): j
+                 for j in range(p.getNumJoints(rid, physicsClientId=cid))}
+        base, orn = sim.base_pose_3d()
+        where = p.getLinkState(rid, names['payload'], physicsClientId=cid)[0]
+        _, back = p.invertTransform(base, orn)
+        local, _ = p.multiplyTransforms([0, 0, 0], back, np.subtract(where, base).tolist(),
+                                        [0, 0, 0, 1])
+        np.testing.assert_allclose(local[:2], (0.08, 0.05), atol=1e-6)
+        assert sim.joint_names == list(ALL_JOINT_NAMES) and not sim.is_fallen()
+        sim.reset()
+        assert sim.execute(STRAIGHT).generic_reward[0] > 0.0  # it still walks
+    finally:
+        sim.set_damage('intact')
+
+
+def test_the_grounds_friction_changes_the_walk_and_comes_back(sim, intact_outcome):
+    cid = sim.client_id
+    sim.set_damage('friction:0.3')
+    try:
+        assert p.getDynamicsInfo(sim._ground, -1, physicsClientId=cid)[1] == 0.3
+        sim.reset()
+        slippery = sim.execute(STRAIGHT)
+        assert np.linalg.norm(slippery.generic_reward - intact_outcome.generic_reward) > 0.01
+    finally:
+        sim.set_damage('intact')
+    assert p.getDynamicsInfo(sim._ground, -1, physicsClientId=cid)[1] == 1.0
+    sim.reset()
+    _same(sim.execute(STRAIGHT), intact_outcome)
+
+
 def test_set_damage_keeps_pose(sim):
     sim.set_damage('intact')
     sim.reset()
