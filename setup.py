@@ -13,6 +13,7 @@ CONSOLE_SCRIPTS = [
     'damage_detector = sela_ros.nodes.damage_detector_node:main',
     'planner = sela_ros.nodes.planner_node:main',
     'sela_adapter = sela_ros.nodes.adapter_node:main',
+    'gait_executor = sela_ros.nodes.gait_executor_node:main',
     'sela-demo = sela_ros.tools.demo:main',
     'sela-experiment = sela_ros.experiments.cli:main',
     'sela-build-archive = sela_ros.tools.build_archive:main',

@@ -1,14 +1,17 @@
 """Start the four sela_ros nodes with config/sela.yaml, robot_state_publisher and maybe RViz.
 
 Usage: ``ros2 launch sela_ros sela_hexapod_launch.py [damage:=...] [seed:=...]
-[namespace:=/robot1] [rviz:=true]``.
+[namespace:=/robot1] [rviz:=true] [interface:=trajectory]``.
 
 Arguments: damage (default remove:middle_right), seed (0), gui (false), params_file (the
 installed config/sela.yaml), archive ('' = the shipped archive), map (the planner's map
 YAML, map_server's format or the project's, set as its map.file; '' = no file: the map.*
 parameters), namespace ('' = the root: every node, topic and service of the stack goes
 under it, so two robots can share a domain), rviz (false; true opens RViz with
-share/sela_ros/rviz/sela.rviz). The obstacle courses are installed in
+share/sela_ros/rviz/sela.rviz), interface (behavior; trajectory: the hardware path, the
+simulator showing the face of a robot under ros2_control and the gait executor playing the
+adapter's gaits on it, measured on the simulator's observed odometry: docs/hardware.md).
+The obstacle courses are installed in
 ``$(ros2 pkg prefix sela_ros)/share/sela_ros/config/maps/`` (wall_gap.yaml, corridor.yaml,
 maze.yaml); a map published on ``map`` (by map_server) replaces the planner's. The goal
 command is in the README ("Send a goal").
@@ -28,13 +31,19 @@ from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, GroupAction
 from launch.conditions import IfCondition
-from launch.substitutions import LaunchConfiguration
+from launch.substitutions import EqualsSubstitution, LaunchConfiguration
 from launch_ros.actions import Node, PushRosNamespace
 
 # Each robot has its own simulator, so its own clock: /clock -> <namespace>/clock for every
 # node of the stack (the same /clock in the root namespace).
 CLOCK_REMAP = [('/clock', 'clock')]
 TF_REMAPS = [('/tf', 'tf'), ('/tf_static', 'tf_static')] + CLOCK_REMAP
+# The gait executor on the simulator's hardware face: its observed odometry (the pose the
+# direct path observes) and IMU, and the simulator's fall test (tilt, and the body's height);
+# the simulator's state comes every 0.5 s of sim time during a gait, slower than real time
+# on a loaded machine: a longer odometry timeout.
+SIMULATED_HARDWARE = {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
+                      'fall.min_height': 0.03, 'odometry.timeout': 5.0}
 
 
 def generate_launch_description():
@@ -61,14 +70,23 @@ def generate_launch_description():
         DeclareLaunchArgument('map', default_value='',
                               description="planner map YAML, e.g. <share>/config/maps/maze.yaml "
                               "(sets planner map.file; '' = the map.* parameters)"),
+        DeclareLaunchArgument('interface', default_value='behavior',
+                              description="behavior: the simulator plays the gaits; trajectory: "
+                              "the hardware path (gait_executor and the simulator's "
+                              "ros2_control face)"),
     ]
+    hardware = IfCondition(EqualsSubstitution(LaunchConfiguration('interface'), 'trajectory'))
     nodes = [
         Node(package='sela_ros', executable='sim_bridge', name='sim_bridge', output='screen',
              parameters=[params, {'damage': LaunchConfiguration('damage'),
                                   'seed': LaunchConfiguration('seed'),
                                   'sim.gui': LaunchConfiguration('gui'),
-                                  'archive': LaunchConfiguration('archive')}],
+                                  'archive': LaunchConfiguration('archive'),
+                                  'interface': LaunchConfiguration('interface')}],
              remappings=CLOCK_REMAP),
+        Node(package='sela_ros', executable='gait_executor', name='gait_executor',
+             output='screen', parameters=[params, SIMULATED_HARDWARE], remappings=CLOCK_REMAP,
+             condition=hardware),
         Node(package='sela_ros', executable='planner', name='planner', output='screen',
              parameters=[params, {'map.file': LaunchConfiguration('map')}],
              remappings=CLOCK_REMAP),

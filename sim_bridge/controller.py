@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
-from sela_ros.core import N_PARAMS
-
+#: Parameters of one gait: six legs, two joint groups, a triple each.
+N_PARAMS = 36
 N_LEGS = 6
 N_SAMPLES = 100
 PERIOD = 1.0

@@ -1,4 +1,4 @@
-"""Damage specifications for the hexapod: a small grammar users can type.
+"""Damage specifications: a small grammar users can type, over a robot's own names.
 
 Grammar (items joined with ``,``; whitespace ignored; case-insensitive)::
 
@@ -14,14 +14,17 @@ Grammar (items joined with ``,``; whitespace ignored; case-insensitive)::
                                      <x>, <y> metres from its centre (within the body's
                                      footprint), default at the centre
 
-``<leg>`` is one of :data:`LEG_NAMES`, ``<joint>`` one of :data:`JOINT_NAMES`.
-Example: ``remove:middle_right,block:front_left.knee``; ``remove:rear_left,friction:0.5``;
-``payload:1.0@0.08,0.05`` (the comma inside a payload's position belongs to it).
+``<leg>`` and ``<joint>`` are names of the robot's :class:`Vocabulary` (the hexapod's:
+:data:`LEG_NAMES`, :data:`JOINT_NAMES`; another robot's description brings its own, and the
+kinds it takes). Example: ``remove:middle_right,block:front_left.knee``;
+``remove:rear_left,friction:0.5``; ``payload:1.0@0.08,0.05`` (the comma inside a payload's
+position belongs to it).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 LEG_NAMES = ('front_left', 'middle_left', 'rear_left',
              'front_right', 'middle_right', 'rear_right')
@@ -36,6 +39,30 @@ MIN_FRICTION, MAX_FRICTION = 0.05, 5.0
 MAX_PAYLOAD = 5.0
 # The payload sits on the body (sim_bridge.model.BODY_SIZE): its centre within the footprint.
 PAYLOAD_X_LIMIT, PAYLOAD_Y_LIMIT = 0.12, 0.10
+
+
+@dataclass(frozen=True)
+class Vocabulary:
+    """The names one robot's damages take.
+
+    Attributes:
+        legs: leg names, in the robot's leg order (duty factors follow it).
+        joints: joint names within a leg.
+        limits: ``(lower, upper)`` radians of each joint (a blocked joint's angle is in them).
+        block_default: angle a joint is blocked at when the spec gives none (default 0).
+        kinds: the damage kinds this robot takes (``intact`` always).
+    """
+
+    legs: tuple[str, ...]
+    joints: tuple[str, ...]
+    limits: Mapping[str, tuple[float, float]]
+    block_default: Mapping[str, float] = field(default_factory=dict)
+    kinds: tuple[str, ...] = KINDS
+
+
+#: The hexapod's legs and joints.
+HEXAPOD = Vocabulary(LEG_NAMES, JOINT_NAMES,
+                     {joint: (-limit, limit) for joint, limit in JOINT_LIMITS.items()})
 
 
 class DamageSpecError(ValueError):
@@ -110,10 +137,10 @@ class DamageSpec:
         return self.canonical()
 
 
-def _leg(name: str, item: str) -> str:
-    if name not in LEG_NAMES:
-        raise DamageSpecError(
-            f'unknown leg {name!r} in damage item {item!r}; valid legs: {", ".join(LEG_NAMES)}')
+def _leg(name: str, item: str, vocabulary: Vocabulary = HEXAPOD) -> str:
+    if name not in vocabulary.legs:
+        raise DamageSpecError(f'unknown leg {name!r} in damage item {item!r}; valid legs: '
+                              f'{", ".join(vocabulary.legs)}')
     return name
 
 
@@ -128,16 +155,29 @@ def _number(text: str, what: str, item: str) -> float:
     return value
 
 
-def _joint(rest: str, item: str, kind: str, what: str) -> tuple[str, str, str]:
+def _joint(rest: str, item: str, kind: str, what: str,
+           vocabulary: Vocabulary = HEXAPOD) -> tuple[str, str, str]:
     """``(leg, joint, value text)`` of ``<leg>.<joint>[=<value>]``."""
     target, _, value_text = rest.partition('=')
     name, dot, joint = target.partition('.')
-    leg = _leg(name, item)
-    if not dot or joint not in JOINT_NAMES:
+    leg = _leg(name, item, vocabulary)
+    if not dot or joint not in vocabulary.joints:
         raise DamageSpecError(
             f'unknown joint {joint!r} in damage item {item!r}; expected '
-            f'{kind}:<leg>.<joint>[=<{what}>] with joint one of {", ".join(JOINT_NAMES)}')
+            f'{kind}:<leg>.<joint>[=<{what}>] with joint one of '
+            f'{", ".join(vocabulary.joints)}')
     return leg, joint, value_text
+
+
+def _examples(vocabulary: Vocabulary) -> str:
+    if vocabulary is HEXAPOD:
+        return ('e.g. remove:middle_right, shorten:front_left:0.5, block:rear_right.knee=0.2, '
+                'weaken:front_left.knee=0.3, friction:0.5, payload:1.0@0.08,0.05')
+    leg, joint = vocabulary.legs[0], vocabulary.joints[-1]
+    examples = {'remove': f'remove:{leg}', 'shorten': f'shorten:{leg}:0.5',
+                'block': f'block:{leg}.{joint}', 'weaken': f'weaken:{leg}.{joint}=0.3',
+                'friction': 'friction:0.5', 'payload': 'payload:1.0'}
+    return 'e.g. ' + ', '.join(examples[k] for k in vocabulary.kinds if k in examples)
 
 
 def _items(text: str) -> list[str]:
@@ -181,8 +221,9 @@ def _payload(rest: str, item: str) -> tuple[float, float, float]:
     return kg, x + 0.0, y + 0.0
 
 
-def parse_damage(spec) -> DamageSpec:
-    """Parse a damage specification (a string, ``None`` or a :class:`DamageSpec`).
+def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD) -> DamageSpec:
+    """Parse a damage specification (a string, ``None`` or a :class:`DamageSpec`) over the
+    names of ``vocabulary`` (the hexapod's by default).
 
     Raises:
         DamageSpecError: unknown kind, leg or joint, a bad number, or a contradiction
@@ -205,12 +246,14 @@ def parse_damage(spec) -> DamageSpec:
         if item in ('', 'intact', 'none'):
             continue
         kind, _, rest = item.partition(':')
+        if kind not in vocabulary.kinds:
+            kind = f'{kind} '  # an unknown kind for this robot: the error below
         if kind == 'remove':
-            leg = _leg(rest, item)
+            leg = _leg(rest, item, vocabulary)
             removed.add(leg)
         elif kind == 'shorten':
             name, _, factor_text = rest.partition(':')
-            leg = _leg(name, item)
+            leg = _leg(name, item, vocabulary)
             factor = (DEFAULT_SHORTEN_FACTOR if factor_text == ''
                       else _number(factor_text, 'shorten factor', item))
             if not 0.0 < factor <= 1.0:
@@ -220,18 +263,19 @@ def parse_damage(spec) -> DamageSpec:
                 raise DamageSpecError(f'leg {leg} shortened twice with different factors')
             shortened[leg] = factor
         elif kind == 'block':
-            leg, joint, angle_text = _joint(rest, item, 'block', 'angle')
-            angle = 0.0 if angle_text == '' else _number(angle_text, 'block angle', item)
-            limit = JOINT_LIMITS[joint]
-            if abs(angle) > limit + 1e-12:
+            leg, joint, angle_text = _joint(rest, item, 'block', 'angle', vocabulary)
+            angle = (vocabulary.block_default.get(joint, 0.0) if angle_text == ''
+                     else _number(angle_text, 'block angle', item))
+            lower, upper = vocabulary.limits[joint]
+            if not lower - 1e-12 <= angle <= upper + 1e-12:
                 raise DamageSpecError(
                     f'block angle {angle} for {leg}.{joint} is outside its limits '
-                    f'[-{limit:.4f}, {limit:.4f}] rad')
+                    f'[{lower:.4f}, {upper:.4f}] rad')
             if (leg, joint) in blocked and blocked[(leg, joint)] != angle:
                 raise DamageSpecError(f'joint {leg}.{joint} blocked twice at different angles')
             blocked[(leg, joint)] = angle
         elif kind == 'weaken':
-            leg, joint, share_text = _joint(rest, item, 'weaken', 'share')
+            leg, joint, share_text = _joint(rest, item, 'weaken', 'share', vocabulary)
             share = (DEFAULT_WEAKEN_SHARE if share_text == ''
                      else _number(share_text, 'weaken share', item))
             if not 0.0 <= share < 1.0:
@@ -253,9 +297,8 @@ def parse_damage(spec) -> DamageSpec:
             payload = value
         else:
             raise DamageSpecError(
-                f'unknown damage kind {kind!r} in {item!r}; valid kinds: {", ".join(KINDS)} '
-                f'(e.g. remove:middle_right, shorten:front_left:0.5, block:rear_right.knee=0.2, '
-                f'weaken:front_left.knee=0.3, friction:0.5, payload:1.0@0.08,0.05)')
+                f'unknown damage kind {kind.strip()!r} in {item!r}; valid kinds: '
+                f'{", ".join(vocabulary.kinds)} ({_examples(vocabulary)})')
     for leg in removed:
         if leg in shortened or any(b[0] == leg for b in blocked) or \
                 any(w[0] == leg for w in weakened):
@@ -264,8 +307,8 @@ def parse_damage(spec) -> DamageSpec:
     for leg, joint in weakened:
         if (leg, joint) in blocked:
             raise DamageSpecError(f'joint {leg}.{joint} is blocked; it cannot also be weakened')
-    order = {name: i for i, name in enumerate(LEG_NAMES)}
-    jorder = {name: i for i, name in enumerate(JOINT_NAMES)}
+    order = {name: i for i, name in enumerate(vocabulary.legs)}
+    jorder = {name: i for i, name in enumerate(vocabulary.joints)}
     return DamageSpec(
         removed=tuple(sorted(removed, key=order.__getitem__)),
         shortened=tuple(sorted(shortened.items(), key=lambda kv: order[kv[0]])),

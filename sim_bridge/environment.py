@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim_bridge.hexapod import generic_reward  # afun, the same as the simulator's
+from sim_bridge.simulator import generic_reward  # afun, the same as the simulator's
 
 #: Sim seconds a fallen robot takes to get up where it lies (one gait's time).
 RIGHTING_TIME = 3.0
@@ -82,12 +82,22 @@ class ObservedHexapod:
         return np.asarray(self.robot.pose(), dtype=float)
 
     def execute(self, params, callback=None, callback_period=None):
+        """One gait of the controller's parameters: the robot's outcome, observed."""
+        return self._run_observed(self.robot.execute, np.asarray(params, dtype=float), callback,
+                              callback_period)
+
+    def execute_targets(self, targets, callback=None, callback_period=None):
+        """The joint targets of one physics step after another
+        (:meth:`~sim_bridge.hexapod.Hexapod.execute_targets`), observed as a gait."""
+        return self._run_observed(self.robot.execute_targets, targets, callback, callback_period)
+
+    def _run_observed(self, run, command, callback, callback_period):
         kwargs = {}
         if callback is not None:
             kwargs = {'callback': callback}
             if callback_period is not None:
                 kwargs['callback_period'] = callback_period
-        outcome = self.robot.execute(np.asarray(params, dtype=float), **kwargs)
+        outcome = run(command, **kwargs)
         if outcome.fallen:
             self.falls += 1
             if self.right_on_fall:

@@ -4,22 +4,25 @@ from __future__ import annotations
 
 from collections import OrderedDict
 
-from sim_bridge.damage import parse_damage
-from sim_bridge.hexapod import GaitOutcome, Hexapod
+from sim_bridge.robots import get_robot
 from sim_bridge.settings import SIM_DEFAULTS, simulator_settings
+from sim_bridge.simulator import GaitOutcome, Simulator
 
 _CACHE: OrderedDict = OrderedDict()
 _CACHE_SIZE = 4
 
 
-def _cached_hexapod(damage, dt, gait_duration, solver_iterations) -> Hexapod:
-    spec = parse_damage(damage)
+def _cached_simulator(damage, dt, gait_duration, solver_iterations, robot) -> Simulator:
+    description = get_robot(robot)
+    spec = description.parse_damage(damage)
     settings = simulator_settings(dt, gait_duration, solver_iterations)
-    key = (spec, settings['dt'], settings['gait_duration'], settings['solver_iterations'])
+    key = (description.name, spec, settings['dt'], settings['gait_duration'],
+           settings['solver_iterations'])
     sim = _CACHE.get(key)
     if sim is None:
-        sim = Hexapod(dt=settings['dt'], gait_duration=settings['gait_duration'], damage=spec,
-                      solver_iterations=settings['solver_iterations'])
+        sim = Simulator(dt=settings['dt'], gait_duration=settings['gait_duration'],
+                        damage=spec, solver_iterations=settings['solver_iterations'],
+                        robot=description)
         _CACHE[key] = sim
         while len(_CACHE) > _CACHE_SIZE:
             _, old = _CACHE.popitem(last=False)
@@ -31,13 +34,15 @@ def _cached_hexapod(damage, dt, gait_duration, solver_iterations) -> Hexapod:
 
 def evaluate_gait(params, damage='intact', dt: float = SIM_DEFAULTS['dt'],
                   gait_duration: float = SIM_DEFAULTS['gait_duration'],
-                  solver_iterations: int = SIM_DEFAULTS['solver_iterations']) -> GaitOutcome:
+                  solver_iterations: int = SIM_DEFAULTS['solver_iterations'],
+                  robot=None) -> GaitOutcome:
     """One gait from a fresh standing start at the origin (deterministic, picklable).
 
-    Uses a per-process cache of simulators (one per damage/dt/duration, reset with
+    Uses a per-process cache of simulators (one per robot/damage/dt/duration, reset with
     ``restoreState``), so it is cheap to call many times in a worker process.
-    ``sim_time`` of the outcome is the gait duration.
+    ``sim_time`` of the outcome is the gait duration. ``robot``: a name or description
+    (:func:`sim_bridge.robots.get_robot`; None: the hexapod).
     """
-    sim = _cached_hexapod(damage, dt, gait_duration, solver_iterations)
+    sim = _cached_simulator(damage, dt, gait_duration, solver_iterations, robot)
     sim.reset(clock=True)
     return sim.execute(params)

@@ -1,18 +1,20 @@
-"""The damaged hexapod as a ``sela_ros.experiments.baselines.Environment``, and the oracle's table.
+"""The damaged robot as a ``sela_ros.experiments.baselines.Environment``, and the oracle's table.
 
-ROS-free. :class:`HexapodEnvironment` lets the in-process experiment
-(``sela-experiment hexapod``) drive the PyBullet hexapod through the same runners as the
+ROS-free. :class:`RobotEnvironment` (also named :class:`HexapodEnvironment`) lets the
+in-process experiment (``sela-experiment hexapod``) drive a simulated robot (the hexapod by
+default, any description of :mod:`sim_bridge.robots`) through the same runners as the
 toy world: ``execute(index)`` runs gait ``index`` of the archive from wherever the robot
 stands (never a reset inside a replicate), and position observations carry the paper's
 Gaussian noise (:class:`sim_bridge.environment.ObservedHexapod`).
 
-A fallen robot (see :meth:`Hexapod.is_fallen`) gets up where it lies after the gait that
-tipped it (:meth:`Hexapod.right`), as the ``sim_bridge`` node's robot does by default. The
+A fallen robot (see :meth:`Simulator.is_fallen`) gets up where it lies after the gait that
+tipped it (:meth:`Simulator.right`), as the ``sim_bridge`` node's robot does by default. The
 gait still counts as a step; :attr:`HexapodEnvironment.falls` counts them.
 
 :func:`oracle_table` evaluates every archive gait on the damaged robot from a standing
 start (``evaluate_gait``), in parallel, cached on disk per (archive checksum, damage,
-simulator settings): the damaged robot's true generic rewards that the oracle plans with.
+simulator settings, whose stamp names the robot's model): the damaged robot's true generic
+rewards that the oracle plans with.
 """
 from __future__ import annotations
 
@@ -24,27 +26,28 @@ from pathlib import Path
 
 import numpy as np
 
-from sela_ros.core import N_PARAMS
 from sela_ros.core.learning import params_checksum
 from sela_ros.core.storage import atomic_write
-from sim_bridge.damage import parse_damage
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.evaluation import evaluate_gait
-from sim_bridge.hexapod import Hexapod
+from sim_bridge.robots import get_robot
 from sim_bridge.settings import SIM_DEFAULTS, simulator_settings
+from sim_bridge.simulator import Simulator
 
 ORACLE_FORMAT_VERSION = 1
 
 
-class HexapodEnvironment:
-    """The hexapod with ``damage``, executing gaits of an archive by index.
+class RobotEnvironment:
+    """The robot with ``damage``, executing gaits of an archive by index.
 
     Args:
-        params: ``(M, 36)`` controller parameters of the archive's gaits.
-        damage: damage spec (``sim_bridge.damage`` grammar), applied from the start.
+        params: ``(M, n_params)`` controller parameters of the archive's gaits.
+        damage: damage spec (``sim_bridge.damage`` grammar, the robot's names), applied from
+            the start.
         noise_std: standard deviation (m) of the noise on each observed coordinate.
         seed: seed of the observation noise.
         dt, gait_duration, solver_iterations: simulator settings (must match the archive's).
+        robot: a name or description (:func:`sim_bridge.robots.get_robot`; None: hexapod).
 
     Attributes:
         falls: gaits after which the robot had fallen (and was righted) since ``reset``.
@@ -54,13 +57,16 @@ class HexapodEnvironment:
     """
 
     def __init__(self, params, damage='intact', noise_std=0.0, seed=0,
-                 dt=1.0 / 240.0, gait_duration=3.0, solver_iterations=50):
+                 dt=1.0 / 240.0, gait_duration=3.0, solver_iterations=50, robot=None):
+        description = get_robot(robot)
         params = np.asarray(params, dtype=float)
-        if params.ndim != 2 or params.shape[1] != N_PARAMS:
-            raise ValueError(f'params must have shape (M, {N_PARAMS}), got {params.shape}')
+        if params.ndim != 2 or params.shape[1] != description.n_params:
+            raise ValueError(f'params must have shape (M, {description.n_params}) for the '
+                             f'{description.name}, got {params.shape}')
         self.params = params
-        self.robot = Hexapod(dt=dt, gait_duration=gait_duration, damage=parse_damage(damage),
-                             solver_iterations=solver_iterations)
+        self.robot = Simulator(dt=dt, gait_duration=gait_duration,
+                               damage=description.parse_damage(damage),
+                               solver_iterations=solver_iterations, robot=description)
         self.observed = ObservedHexapod(self.robot, noise_std=noise_std, seed=seed)
         self.falls = 0
         self.sim_seconds = 0.0
@@ -88,7 +94,7 @@ class HexapodEnvironment:
 
     @property
     def standing(self) -> bool:
-        """Whether the next gait starts from a standing start (``Hexapod.standing``)."""
+        """Whether the next gait starts from a standing start (``Simulator.standing``)."""
         return self.robot.standing
 
     def observed_pose(self) -> np.ndarray:
@@ -113,6 +119,10 @@ class HexapodEnvironment:
         return self.observed.observed_pose()
 
 
+#: The name the hexapod's experiments have always used.
+HexapodEnvironment = RobotEnvironment
+
+
 # --------------------------------------------------------------------------- oracle table
 
 
@@ -128,9 +138,10 @@ def default_cache_dir() -> Path:
 
 
 def oracle_cache_path(params, damage, cache_dir=None, dt=1.0 / 240.0,
-                      gait_duration=3.0, solver_iterations=50) -> Path:
-    settings = simulator_settings(dt, gait_duration, solver_iterations)
-    parts = [archive_checksum(params), parse_damage(damage).canonical(),
+                      gait_duration=3.0, solver_iterations=50, robot=None) -> Path:
+    description = get_robot(robot)
+    settings = simulator_settings(dt, gait_duration, solver_iterations, robot=description)
+    parts = [archive_checksum(params), description.parse_damage(damage).canonical(),
              repr(settings['dt']), repr(settings['gait_duration']),
              settings['controller_version'], settings['model_version'],
              str(ORACLE_FORMAT_VERSION)]
@@ -142,10 +153,10 @@ def oracle_cache_path(params, damage, cache_dir=None, dt=1.0 / 240.0,
 
 
 def _evaluate_chunk(job):
-    chunk, damage, dt, gait_duration, solver_iterations = job
+    chunk, damage, dt, gait_duration, solver_iterations, robot = job
     out = np.empty((len(chunk), 4))
     for i, params in enumerate(chunk):
-        outcome = evaluate_gait(params, damage, dt, gait_duration, solver_iterations)
+        outcome = evaluate_gait(params, damage, dt, gait_duration, solver_iterations, robot)
         out[i, :3] = outcome.generic_reward
         out[i, 3] = float(outcome.fallen)
     return out
@@ -153,12 +164,15 @@ def _evaluate_chunk(job):
 
 def compute_oracle_table(params, damage, workers=1, dt=1.0 / 240.0, gait_duration=3.0,
                          solver_iterations=50,
-                         chunk_size=25):
+                         chunk_size=25, robot=None):
     """``(generic_reward (M, 3), fallen (M,))`` of every gait on the damaged robot."""
     params = np.asarray(params, dtype=float)
-    spec = parse_damage(damage).canonical()
+    description = get_robot(robot)
+    spec = description.parse_damage(damage).canonical()
     chunks = [params[i:i + chunk_size] for i in range(0, len(params), chunk_size)]
-    jobs = [(c, spec, dt, gait_duration, solver_iterations) for c in chunks]
+    # The robot travels to worker processes by name (descriptions of ROBOTS are found there).
+    jobs = [(c, spec, dt, gait_duration, solver_iterations, description.name)
+            for c in chunks]
     if workers <= 1 or len(chunks) <= 1:
         rows = [_evaluate_chunk(j) for j in jobs]
     else:
@@ -169,10 +183,11 @@ def compute_oracle_table(params, damage, workers=1, dt=1.0 / 240.0, gait_duratio
 
 
 def cached_oracle_table(params, damage, cache_dir=None, dt=1.0 / 240.0, gait_duration=3.0,
-                        solver_iterations=50):
+                        solver_iterations=50, robot=None):
     """The oracle table of :func:`oracle_table` if it is cached, whole and sound; else None
     (nothing is computed)."""
-    path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration, solver_iterations)
+    path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration, solver_iterations,
+                             robot)
     n = len(params)
     if not path.is_file():
         return None
@@ -187,22 +202,24 @@ def cached_oracle_table(params, damage, cache_dir=None, dt=1.0 / 240.0, gait_dur
 
 
 def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
-                 gait_duration=3.0, solver_iterations=50):
+                 gait_duration=3.0, solver_iterations=50, robot=None):
     """:func:`compute_oracle_table`, cached on disk (atomic write; a bad file is redone).
 
     Returns:
         ``(generic_reward (M, 3), fallen (M,))``.
     """
     cached = cached_oracle_table(params, damage, cache_dir, dt, gait_duration,
-                                 solver_iterations)
+                                 solver_iterations, robot)
     if cached is not None:
         return cached
-    path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration, solver_iterations)
+    description = get_robot(robot)
+    path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration, solver_iterations,
+                             description)
     gr, fallen = compute_oracle_table(params, damage, workers, dt, gait_duration,
-                                      solver_iterations)
+                                      solver_iterations, robot=description)
     atomic_write(path, lambda handle: np.savez(
         handle, generic_reward=gr, fallen=fallen,
-        damage=np.array(parse_damage(damage).canonical())))
+        damage=np.array(description.parse_damage(damage).canonical())))
     return gr, fallen
 
 
@@ -220,7 +237,7 @@ def chained_runs(params, damage, gaits, predecessors, workers=1, dt=1.0 / 240.0,
     if not gaits.size:  # a damage whose gaits the fall model does not fear (a middle leg)
         return np.zeros(0, int), np.zeros(0, int)
     predecessors = np.asarray(predecessors, dtype=int).reshape(len(gaits), -1)
-    spec = parse_damage(damage).canonical()
+    spec = get_robot(None).parse_damage(damage).canonical()
     # Cached beside the oracle tables, keyed by everything the runs depend on.
     key = hashlib.sha256(b'|'.join([oracle_cache_path(params, damage, cache_dir, dt,
                                                       gait_duration, solver_iterations
@@ -251,8 +268,8 @@ def chained_runs(params, damage, gaits, predecessors, workers=1, dt=1.0 / 240.0,
 def _chained_chunk(job):
     gaits, predecessors, damage, dt, gait_duration, solver_iterations = job
     out = np.zeros((len(gaits), 2), int)
-    with Hexapod(dt=dt, gait_duration=gait_duration, damage=damage,
-                 solver_iterations=solver_iterations) as robot:
+    with Simulator(dt=dt, gait_duration=gait_duration, damage=damage,
+                   solver_iterations=solver_iterations) as robot:
         for i, (gait, before) in enumerate(zip(gaits, predecessors)):
             for first in before:
                 robot.reset()

@@ -1,12 +1,19 @@
-"""The ``sim_bridge`` node: the PyBullet hexapod on the ROS graph.
+"""The ``sim_bridge`` node: a simulated robot (the PyBullet hexapod by default) on the ROS graph.
+
+``robot`` names its description (:mod:`sim_bridge.robots`: ``hexapod``, ``a1``); the topic
+and service names are the same whatever the robot (another robot's stack runs in a namespace
+of its own, docs/ros.md).
 
 Publishes ``/clock`` (it owns sim time), ``/hexapod/odom`` (odom -> base_link),
 ``/hexapod/joint_states``; executes each command on ``/hexapod/behavior`` and answers with
 exactly one ``/hexapod/behavior_outcome`` carrying the command's id; serves
-``/sim_bridge/reset``. ``damage`` can be changed at run time with ``ros2 param set``.
+``/sim_bridge/reset``. With ``interface: trajectory`` it shows the hardware face of a robot
+under ros2_control instead (see :class:`HardwareFace`): joint trajectories in, IMU and an
+external odometry out, and no gait commands or outcomes (the gait executor's).
+``damage`` can be changed at run time with ``ros2 param set``.
 The physics (``sim.dt``, ``sim.gait_duration``, ``sim.solver_iterations``) are those stamped
-in the ``archive`` parameter's file ('' = the archive shipped with the package, the one the
-adapter serves by default; ``none`` = the ``sim.*`` values as given): a map's gaits only do in
+in the ``archive`` parameter's file ('' = the robot's shipped archive, for the hexapod the one
+the adapter serves by default; ``none`` = the ``sim.*`` values as given): a map's gaits only do in
 simulation what the map says with the settings it was built with.
 
 Gaits run on a worker thread that owns the simulator, so the node's single-threaded
@@ -32,32 +39,53 @@ from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
-from sim_bridge.damage import DamageSpecError, parse_damage
+from sim_bridge.damage import DamageSpecError
 from sim_bridge.environment import RIGHTING_TIME, ObservedHexapod
-from sim_bridge.hexapod import Hexapod
-from sim_bridge.model import hexapod_urdf
-from sim_bridge.settings import SIM_DEFAULTS, read_archive_settings
+from sim_bridge.robots import DEFAULT_ROBOT, ROBOTS, get_robot, robot_of
+from sim_bridge.settings import SIM_DEFAULTS, physics_settings, read_archive_metadata
+from sim_bridge.simulator import Simulator
+from sim_bridge.trajectory import TrajectoryError, check_trajectory, hold_targets
 
 
-def damage_rule(value):
-    """A damage spec users can type; the error lists the valid names."""
+def damage_rule(value, robot=None):
+    """A damage spec users can type for ``robot`` (a description; None: the hexapod); the
+    error lists the valid names."""
+    description = get_robot(robot)
     if not isinstance(value, str):
-        return f'must be a string such as remove:middle_right, got {value!r}'
+        return f'must be a string such as {description.default_damage}, got {value!r}'
     try:
-        parse_damage(value)
+        description.parse_damage(value)
     except DamageSpecError as exc:
         return f'is invalid: {exc}'
     return None
 
 
+def robot_rule(value):
+    """A robot the stack has a description of."""
+    try:
+        get_robot(value)
+    except ValueError as exc:
+        return f'is invalid: {exc}'
+    return None
+
+
+def _damage_spec(description):
+    return Spec('damage', description.default_damage,
+                'what is broken; can change at run time: intact, '
+                'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], '
+                'weaken:<leg>.<joint>[=torque share], friction:<ground coefficient>, '
+                'payload:<kg>[@<x>,<y> m from the body centre], comma-joined (the kinds and the '
+                'leg and joint names the robot takes; the default is the robot\'s)',
+                rule=lambda value: damage_rule(value, description))
+
+
+INTERFACES = ('behavior', 'trajectory')
 IDLE_PERIOD = 0.1  # s (wall) between state messages while no gait runs
 
 PARAMETERS = (
-    Spec('damage', 'remove:middle_right', 'what is broken; can change at run time: intact, '
-         'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], '
-         'weaken:<leg>.<joint>[=torque share], friction:<ground coefficient>, '
-         'payload:<kg>[@<x>,<y> m from the body centre], comma-joined',
-         rule=damage_rule),
+    Spec('robot', DEFAULT_ROBOT, f'the simulated robot: {", ".join(ROBOTS)} or '
+         'package.module:DESCRIPTION (docs/robots.md)', read_only=True, rule=robot_rule),
+    _damage_spec(get_robot(DEFAULT_ROBOT)),
     Spec('sim.dt', 1.0 / 240.0, 'physics step; must match the archive', low=1e-4, high=0.05,
          unit=' s', read_only=True),
     Spec('sim.gait_duration', 3.0, 'duration of one behaviour', low=0.1, high=60.0, unit=' s',
@@ -66,9 +94,9 @@ PARAMETERS = (
          'solver iterations per step; must match the archive', low=1, high=1000,
          read_only=True),
     Spec('archive', '', 'an archive file whose stamped physics (dt, gait duration, solver '
-         'iterations) replace the sim.* values; "" = the shipped archive (as the adapter), '
-         '"8d"/"2d" = the shipped ones by name, "none" = use the sim.* values',
-         read_only=True),
+         'iterations) replace the sim.* values; "" = the robot\'s shipped archive (the '
+         'hexapod\'s as the adapter), "8d"/"2d"/"a1" = the shipped ones by name, "none" = use '
+         'the sim.* values', read_only=True),
     Spec('sim.gui', False, "PyBullet's window (needs a display)", read_only=True,
          rule=lambda v: None if not v or _has_display() else 'needs a display (DISPLAY and '
          'WAYLAND_DISPLAY are not set); use sim.gui:=false for headless DIRECT mode'),
@@ -85,6 +113,11 @@ PARAMETERS = (
          'righting_time); false: it stays down until /sim_bridge/reset', read_only=True),
     Spec('righting_time', RIGHTING_TIME, 'sim time a fallen robot takes to get up',
          low=0.0, high=600.0, unit=' s', read_only=True),
+    Spec('interface', 'behavior', 'behavior: gaits from the adapter\'s commands, answered with '
+         'outcomes; trajectory: the hardware face of a robot under ros2_control (joint '
+         'trajectories in, IMU and the observed odometry out), for the gait executor',
+         read_only=True, rule=lambda v: None if v in INTERFACES
+         else f'must be one of {", ".join(INTERFACES)}, got {v!r}'),
 )
 
 
@@ -97,17 +130,104 @@ def _has_display():
     return bool(os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY'))
 
 
-class SimBridge(Node):
+def parameters_for(description):
+    """The node's parameters with ``damage`` over ``description``'s names and default."""
+    return tuple(_damage_spec(description) if spec.name == 'damage' else spec
+                 for spec in PARAMETERS)
+
+
+# --- the hardware face (interface: trajectory) -------------------------------------------
+
+
+class HardwareFace:
+    """What a robot under ros2_control shows, played by the simulator: a
+    ``joint_trajectory_controller``'s command topic in; ``hexapod/imu`` (the body's
+    orientation) and ``hexapod/odom_observed`` (an external odometry: the observation
+    model's pose, with the body's height and attitude) out, beside the joint states.
+
+    Each trajectory is played as one gait: its points held until the next one's time, with
+    the direct path's servo (:func:`sim_bridge.trajectory.hold_targets`), so a trajectory
+    that samples the gait controller at its own rate does what the command would. The
+    observed pose is drawn, as on the direct path, once at the end of each trajectory: the
+    odometry and IMU stamped with the trajectory's end time show the body as it ended
+    (fallen or not) and the new observed pose, before a fallen robot is righted.
+    A trajectory with unknown joints or targets beyond the joints' limits is refused with
+    an ERROR on diagnostics and moves nothing.
+    """
+
+    def _start_hardware_face(self):
+        self.imu_pub = ifc.publisher(self, ifc.IMU)
+        self.observed_pub = ifc.publisher(self, ifc.ODOM_OBSERVED)
+        ifc.subscription(self, ifc.JOINT_TRAJECTORY, self.trajectory_callback)
+
+    @guard
+    def trajectory_callback(self, msg):
+        try:
+            names, times, positions = conv.trajectory_from_msg(msg)
+            check_trajectory(names, times, positions, robot=self.description)
+            if round(times[-1] / self.env.robot.dt) < 1:
+                raise TrajectoryError(f'it lasts {times[-1]} s, less than one physics step')
+        except (conv.MessageError, TrajectoryError) as exc:
+            message = f'rejected trajectory on {ifc.JOINT_TRAJECTORY.name}: {exc}'
+            self.get_logger().error(message)
+            self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
+                DiagnosticStatus.ERROR, 'sim_bridge: trajectory', message,
+                hardware_id=self.description.name), self.env.robot.sim_time))
+            return
+        self._enqueue('trajectory', names, (times, positions))
+
+    def _run_trajectory(self, names, points):
+        times, positions = points
+        targets = hold_targets(names, times, positions, self.env.robot.dt,
+                               robot=self.description)
+        gait_end = self.env.robot.sim_time + len(targets) * self.env.robot.dt
+        end = []
+        min_gap = 0.0 if self.publish_max_rate is None else 1.0 / self.publish_max_rate
+        last = [time.monotonic()]
+
+        def on_step(sim_time, pose, positions, velocities):
+            if sim_time >= gait_end - 1e-9:  # the end: published once observed
+                end[:] = [sim_time, self.env.robot.base_pose_3d(), positions, velocities]
+                return
+            now = time.monotonic()
+            if now - last[0] >= min_gap:
+                last[0] = now
+                self._publish_state(sim_time, pose, positions, velocities)
+
+        result = self.env.execute_targets(targets, callback=on_step,
+                                          callback_period=self.publish_period)
+        sim_time, (xyz, quaternion), positions, velocities = end
+        if result.fallen:
+            self._report_fall(None)
+        self._publish_joint_states(conv.time_to_msg(sim_time), positions, velocities)
+        self._publish_hardware_state(sim_time, xyz, quaternion)
+        self._publish_state(self.env.robot.sim_time)
+
+    def _publish_hardware_state(self, sim_time, xyz=None, quaternion=None):
+        if xyz is None:
+            xyz, quaternion = self.env.robot.base_pose_3d()
+        self.imu_pub.publish(conv.imu_msg(quaternion, sim_time))
+        # The pose as last observed (held during a gait, as the direct path's observations).
+        x, y, _ = self.env.observed_pose()
+        self.observed_pub.publish(conv.odometry_3d_msg((x, y, xyz[2]), quaternion, sim_time))
+
+
+# --- the simulator's node ------------------------------------------------------------------
+
+
+class SimBridge(HardwareFace, Node):
     def __init__(self):
         super().__init__(ifc.SIM_BRIDGE)
+        self.description = self._take_robot()
         physics = self._take_archive_physics()
-        values = declare(self, PARAMETERS, on_change=self.parameters_callback)
+        values = declare(self, parameters_for(self.description),
+                         on_change=self.parameters_callback)
         if physics:  # said once the parameters are known good (a bad one: one line only)
             self.get_logger().info(physics)
         damage = values['damage']
-        robot = Hexapod(dt=values['sim.dt'], gait_duration=values['sim.gait_duration'],
-                        solver_iterations=values['sim.solver_iterations'],
-                        damage=damage, gui=values['sim.gui'])
+        robot = Simulator(dt=values['sim.dt'], gait_duration=values['sim.gait_duration'],
+                          solver_iterations=values['sim.solver_iterations'],
+                          damage=damage, gui=values['sim.gui'], robot=self.description)
         self.env = ObservedHexapod(robot, values['observation.noise_std'], seed=values['seed'],
                                    right_on_fall=values['right_on_fall'],
                                    righting_time=values['righting_time'])
@@ -125,9 +245,13 @@ class SimBridge(Node):
         self.clock_pub = ifc.publisher(self, ifc.CLOCK)
         self.odom_pub = ifc.publisher(self, ifc.ODOM)
         self.joint_pub = ifc.publisher(self, ifc.JOINT_STATES)
-        self.outcome_pub = ifc.publisher(self, ifc.OUTCOME)
         self.diag_pub = ifc.publisher(self, ifc.DIAGNOSTICS)
-        ifc.subscription(self, ifc.BEHAVIOR, self.behavior_callback)
+        self.interface = values['interface']
+        if self.interface == 'trajectory':
+            self._start_hardware_face()
+        else:
+            self.outcome_pub = ifc.publisher(self, ifc.OUTCOME)
+            ifc.subscription(self, ifc.BEHAVIOR, self.behavior_callback)
         ifc.server(self, ifc.RESET, self.reset_callback)
         # For RViz and Foxglove (REP-105): odom -> base_link with every state message, and
         # the robot as it is now (legs removed by the damage are absent), latched. Relative
@@ -145,8 +269,18 @@ class SimBridge(Node):
         self._worker = threading.Thread(target=self._work_loop, name='gait_worker', daemon=True)
         self._worker.start()
         self._publish_state(self.env.robot.sim_time)
-        self.get_logger().info(f"hexapod ready, damage '{damage}', "
-                               f'noise std {self.env.noise_std} m')
+        self.get_logger().info(f"{self.description.name} ready, damage '{damage}', "
+                               f'noise std {self.env.noise_std} m, interface {self.interface}')
+
+    def _take_robot(self):
+        """The description the start-up value of ``robot`` names (the hexapod when none is
+        given; a bad one is reported when ``robot`` is declared)."""
+        overrides = getattr(self, '_parameter_overrides', None)
+        given = overrides.get('robot') if isinstance(overrides, dict) else None
+        try:
+            return get_robot(given.value if given is not None else None)
+        except ValueError:
+            return get_robot(None)
 
     def _take_archive_physics(self):
         """Start-up values of sim.* from the stamp of the archive given at start-up ('' = the
@@ -166,12 +300,21 @@ class SimBridge(Node):
         value = archive.value if archive is not None else ''
         if not isinstance(value, str) or value.strip().lower() == 'none':
             return None  # a wrongly typed archive is reported when it is declared
+        value = value or self.description.archive
+        if not value:
+            return None  # a robot without a shipped map: the sim.* values
         path = resolve_archive_path(value)
         try:
-            settings = read_archive_settings(path)
+            metadata = read_archive_metadata(path)
         except ValueError as exc:
             self.get_logger().error(f'parameter archive: {exc}; using the sim.* parameters')
             return None
+        if robot_of(metadata) != self.description.name:
+            self.get_logger().error(f'parameter archive: {path} is a map of the '
+                                    f'{robot_of(metadata)}, not of the '
+                                    f'{self.description.name}; using the sim.* parameters')
+            return None
+        settings = physics_settings(metadata)
         for name, key in (('sim.dt', 'dt'), ('sim.gait_duration', 'gait_duration'),
                           ('sim.solver_iterations', 'solver_iterations')):
             overrides[name] = Parameter(name, value=settings[key])
@@ -182,13 +325,13 @@ class SimBridge(Node):
     @guard
     def behavior_callback(self, msg):
         try:
-            params, behavior_id = conv.behavior_from_msg(msg)
+            params, behavior_id = conv.behavior_from_msg(msg, self.description.n_params)
         except conv.MessageError as exc:
             message = f'rejected command on /hexapod/behavior: {exc}'
             self.get_logger().error(message)
             self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
-                DiagnosticStatus.ERROR, 'sim_bridge: command', message, hardware_id='hexapod'),
-                self.env.robot.sim_time))
+                DiagnosticStatus.ERROR, 'sim_bridge: command', message,
+                hardware_id=self.description.name), self.env.robot.sim_time))
             return
         if behavior_id is None:
             behavior_id = self._next_auto_id
@@ -224,7 +367,8 @@ class SimBridge(Node):
         # Called by params.declare with values its check accepted.
         for param in params:
             if param.name == 'damage':
-                self._enqueue('damage', parse_damage(param.value).canonical(), None)
+                self._enqueue('damage', self.description.parse_damage(param.value).canonical(),
+                              None)
             elif param.name == 'observation.noise_std':
                 self._enqueue('noise', float(param.value), None)
             elif param.name == 'publish_period':
@@ -259,6 +403,8 @@ class SimBridge(Node):
                 with self._sim_lock:
                     if kind == 'gait':
                         self._run_gait(a, b)
+                    elif kind == 'trajectory':
+                        self._run_trajectory(a, b)
                     elif kind == 'reset':
                         self.env.reset()
                         self._publish_state(self.env.robot.sim_time)
@@ -302,12 +448,12 @@ class SimBridge(Node):
         self._publish_state(self.env.robot.sim_time)
 
     def _report_fall(self, behavior_id):
-        values = {'behavior_id': behavior_id,
+        values = {'behavior_id': 'none (a trajectory)' if behavior_id is None else behavior_id,
                   'action': 'righted in place' if self.right_on_fall
                   else 'down until /sim_bridge/reset'}
         self.diag_pub.publish(conv.diagnostic_array(conv.diagnostic_status(
             DiagnosticStatus.ERROR, 'sim_bridge: robot', 'robot fell or flipped', values,
-            hardware_id='hexapod'), self.env.robot.sim_time))
+            hardware_id=self.description.name), self.env.robot.sim_time))
         self.get_logger().error(f'robot fell during behavior {behavior_id}')
 
     def _publish_state(self, sim_time, pose=None, positions=None, velocities=None):
@@ -320,6 +466,11 @@ class SimBridge(Node):
             self.tf_pub.publish(ifc.TF.type(transforms=[self._base_transform(odom)]))
         if positions is None:
             positions, velocities = self.env.robot.joint_states()
+        self._publish_joint_states(stamp, positions, velocities)
+        if self.interface == 'trajectory':
+            self._publish_hardware_state(sim_time)
+
+    def _publish_joint_states(self, stamp, positions, velocities):
         js = JointState()
         js.header.stamp = stamp
         js.name = list(self.env.robot.joint_names)
@@ -340,7 +491,7 @@ class SimBridge(Node):
         return tf
 
     def _publish_description(self, damage):
-        self.description_pub.publish(String(data=hexapod_urdf(damage)))
+        self.description_pub.publish(String(data=self.description.urdf(damage)))
 
     def destroy_node(self):
         self._stop.set()

@@ -31,11 +31,14 @@ FAST_SETTINGS = {'dt': 1.0 / 120.0, 'solver_iterations': 30}
 
 def simulator_settings(dt: float = SIM_DEFAULTS['dt'],
                        gait_duration: float = SIM_DEFAULTS['gait_duration'],
-                       solver_iterations: int = SIM_DEFAULTS['solver_iterations']) -> dict:
+                       solver_iterations: int = SIM_DEFAULTS['solver_iterations'],
+                       robot=None) -> dict:
     """Settings that make gait outcomes comparable; stamp archives with them.
 
     A longer dt and fewer solver iterations make evaluations cheaper but move where gaits
     end by centimetres, so an archive is only valid in a simulator with its own settings.
+    ``robot`` (a :class:`sim_bridge.robots.RobotDescription`; None: the hexapod) adds its
+    stamp: its controller and model versions, and its name.
     """
     dt = float(dt)
     gait_duration = float(gait_duration)
@@ -47,9 +50,12 @@ def simulator_settings(dt: float = SIM_DEFAULTS['dt'],
             or not 1 <= solver_iterations <= 1000:
         raise ValueError(f'solver_iterations must be an integer in [1, 1000], got '
                          f'{solver_iterations!r}')
-    return {'dt': dt, 'gait_duration': gait_duration,
-            'controller_version': CONTROLLER_VERSION, 'model_version': MODEL_VERSION,
-            'solver_iterations': int(solver_iterations)}
+    settings = {'dt': dt, 'gait_duration': gait_duration,
+                'controller_version': CONTROLLER_VERSION, 'model_version': MODEL_VERSION,
+                'solver_iterations': int(solver_iterations)}
+    if robot is not None:
+        settings.update(robot.stamp())
+    return settings
 
 
 def physics_settings(metadata: dict) -> dict:
@@ -70,6 +76,15 @@ def read_archive_settings(path: str | os.PathLike) -> dict:
     Raises:
         ValueError: no such file, or no readable metadata in it.
     """
+    return physics_settings(read_archive_metadata(path))
+
+
+def read_archive_metadata(path: str | os.PathLike) -> dict:
+    """The JSON metadata of the archive file at ``path`` (its stamp: physics, robot).
+
+    Raises:
+        ValueError: no such file, or no readable metadata in it.
+    """
     try:
         with np.load(path, allow_pickle=False) as npz:
             metadata = json.loads(str(npz['metadata']))
@@ -78,4 +93,4 @@ def read_archive_settings(path: str | os.PathLike) -> dict:
                          f'{type(exc).__name__}: {exc}') from None
     if not isinstance(metadata, dict):
         raise ValueError(f'archive {path}: metadata is not a JSON object')
-    return physics_settings(metadata)
+    return metadata

@@ -13,6 +13,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 NODES = ('sim_bridge', 'planner', 'damage_detector', 'sela_adapter')
+#: Nodes of config/sela.yaml beside the four: the hardware path's.
+CONFIGURED = NODES + ('gait_executor',)
 
 
 class _Recorder:
@@ -20,23 +22,26 @@ class _Recorder:
         self.args, self.kwargs = args, kwargs
 
 
-@pytest.fixture
-def launch_description(monkeypatch):
+def _load_launch(monkeypatch, filename):
     fakes = {'launch': ['LaunchDescription'],
              'launch.actions': ['DeclareLaunchArgument', 'GroupAction'],
              'launch.conditions': ['IfCondition'],
-             'launch.substitutions': ['LaunchConfiguration'], 'launch_ros': [],
-             'launch_ros.actions': ['Node', 'PushRosNamespace']}
+             'launch.substitutions': ['EqualsSubstitution', 'LaunchConfiguration'],
+             'launch_ros': [], 'launch_ros.actions': ['Node', 'PushRosNamespace']}
     for name, classes in fakes.items():
         module = types.ModuleType(name)
         for cls in classes:
             setattr(module, cls, type(cls, (_Recorder,), {}))
         monkeypatch.setitem(sys.modules, name, module)
-    spec = importlib.util.spec_from_file_location(
-        'sela_launch', ROOT / 'launch' / 'sela_hexapod_launch.py')
+    spec = importlib.util.spec_from_file_location('sela_launch', ROOT / 'launch' / filename)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module.generate_launch_description()
+
+
+@pytest.fixture
+def launch_description(monkeypatch):
+    return _load_launch(monkeypatch, 'sela_hexapod_launch.py')
 
 
 def _nodes(launch_description):
@@ -53,7 +58,8 @@ def _nodes(launch_description):
 
 def test_launch_starts_the_four_nodes_with_the_config(launch_description):
     actions = launch_description.args[0]
-    nodes = [n for n in _nodes(launch_description) if n.kwargs['package'] == 'sela_ros']
+    nodes = [n for n in _nodes(launch_description) if n.kwargs['package'] == 'sela_ros'
+             and 'condition' not in n.kwargs]
     assert sorted(n.kwargs['executable'] for n in nodes) == sorted(NODES)
     assert all(n.kwargs['name'] == n.kwargs['executable'] for n in nodes)
     declared = {a.args[0]: a.kwargs['default_value'] for a in actions
@@ -89,6 +95,57 @@ def test_robot_state_publisher_and_optional_rviz_use_installed_files(launch_desc
     assert dict(rviz.kwargs['remappings'])['/tf'] == 'tf'
 
 
+def _arguments(launch_description):
+    return {a.args[0]: a.kwargs['default_value'] for a in launch_description.args[0]
+            if type(a).__name__ == 'DeclareLaunchArgument'}
+
+
+def test_interface_trajectory_runs_the_hardware_path_in_simulation(launch_description):
+    assert _arguments(launch_description)['interface'] == 'behavior'
+    by_name = {n.kwargs['executable']: n for n in _nodes(launch_description)}
+    sim = by_name['sim_bridge'].kwargs['parameters'][1]
+    assert sim['interface'].args[0] == 'interface'
+    executor = by_name['gait_executor']
+    condition = executor.kwargs['condition'].args[0]  # only with interface:=trajectory
+    assert type(condition).__name__ == 'EqualsSubstitution'
+    assert condition.args[0].args[0] == 'interface' and condition.args[1] == 'trajectory'
+    # On the simulator's hardware face: its observed odometry and IMU, its fall test.
+    from sela_ros.tools.demo import simulated_hardware
+    from sim_bridge.robots import get_robot
+
+    params = executor.kwargs['parameters'][1]
+    assert {**params, 'robot': 'hexapod', 'fall.tilt': get_robot('hexapod').fall_tilt} == \
+        simulated_hardware(get_robot('hexapod'))  # sela-demo --interface trajectory's
+    assert params == {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
+                      'fall.min_height': 0.03, 'odometry.timeout': 5.0}
+    from sela_ros.nodes import interface as ifc
+
+    assert (ifc.ODOM_OBSERVED.name, ifc.IMU.name) == ('hexapod/odom_observed', 'hexapod/imu')
+
+
+def test_the_hardware_launch_runs_the_stack_on_a_robots_own_topics(monkeypatch):
+    launch = _load_launch(monkeypatch, 'sela_hardware_launch.py')
+    arguments = _arguments(launch)
+    assert arguments['odometry_topic'] == 'odom' and arguments['imu_topic'] == ''
+    from sela_ros.nodes import interface as ifc
+
+    assert arguments['trajectory_topic'] == ifc.JOINT_TRAJECTORY.name
+    nodes = {n.kwargs['executable']: n for n in _nodes(launch)}
+    assert set(nodes) == {'planner', 'damage_detector', 'sela_adapter', 'gait_executor'}
+    (group,) = [a for a in launch.args[0] if type(a).__name__ == 'GroupAction']
+    assert type(group.args[0][0]).__name__ == 'PushRosNamespace'
+    for name, node in nodes.items():  # no simulator: no /clock
+        assert {'use_sim_time': False} in node.kwargs['parameters'], name
+    for name in ('planner', 'sela_adapter'):  # the pose from the robot's odometry
+        (remap,) = nodes[name].kwargs['remappings']
+        assert remap[0] == ifc.ODOM.name and remap[1].args[0] == 'odometry_topic'
+    adapter = nodes['sela_adapter'].kwargs['parameters'][2]
+    assert adapter['simulator_node'] == ''
+    detector = nodes['damage_detector'].kwargs['parameters'][2]
+    assert 'sim_bridge' not in detector['heartbeat.nodes']
+    assert set(detector['heartbeat.nodes']) <= set(ifc.ALIVE)
+
+
 def test_rviz_config_shows_the_robot_and_sets_goals_on_goal_pose():
     config = yaml.safe_load((ROOT / 'rviz' / 'sela.rviz').read_text())
     manager = config['Visualization Manager']
@@ -104,7 +161,7 @@ def test_rviz_config_shows_the_robot_and_sets_goals_on_goal_pose():
 def _config():
     raw = yaml.safe_load((ROOT / 'config' / 'sela.yaml').read_text())
     # /**/<node>: the node's parameters in any namespace (namespace:=/robot1).
-    assert set(raw) == {f'/**/{node}' for node in NODES}
+    assert set(raw) == {f'/**/{node}' for node in CONFIGURED}
     return {key.removeprefix('/**/'): value for key, value in raw.items()}
 
 
@@ -113,7 +170,7 @@ def test_config_is_keyed_by_node_name_with_ros_parameters():
     from sela_ros.nodes.planner_node import load_map_file
 
     assert load_map_file(ROOT / 'config' / 'obstacle_map.yaml').occupied.any()
-    for node in NODES:
+    for node in CONFIGURED:
         assert set(config[node]) == {'ros__parameters'}
     assert config['sim_bridge']['ros__parameters']['use_sim_time'] is False
     for node in ('planner', 'damage_detector', 'sela_adapter'):

@@ -19,7 +19,7 @@ RANKS = {'sela_ros.core': 0, 'sim_bridge.robot': 1, 'sela_ros.qd': 2,
 # Besides numpy/scipy, two file-format readers for the map loader (core/planning/maps.py): pyyaml
 # for map YAML files and Pillow (which matplotlib brings) for PNG maps. Never ROS.
 CORE_MAY_IMPORT = {'numpy', 'scipy', 'sela_ros', 'yaml', 'PIL'}
-# The core's subpackages, bottom up; its root (N_PARAMS, geometry) is under them all.
+# The core's subpackages, bottom up; its root (geometry) is under them all.
 CORE_RANKS = {'sela_ros.core': 0, 'sela_ros.core.validation': 1, 'sela_ros.core.storage': 2,
               'sela_ros.core.planning': 2, 'sela_ros.core.detection': 2,
               'sela_ros.core.learning': 3, 'sela_ros.core.mission': 4}

@@ -8,8 +8,7 @@ Its subpackages, bottom up (imports only go down, ``test/test_layers.py``):
 :mod:`~sela_ros.core.learning` (GPs, UCB, SELA, damage priors, fall risk),
 :mod:`~sela_ros.core.mission` (the step cycle, in process or driven by the adapter node);
 :mod:`~sela_ros.core.geometry` (planar geometry) under them all.
-"""
 
-#: Parameters of one gait: the open-loop controller's (sim_bridge.controller), what an
-#: archive stores per behaviour and what a behaviour command carries.
-N_PARAMS = 36
+The robot's sizes (gait parameters, descriptor dimensions) are the archive's: the core holds
+no robot's constants.
+"""

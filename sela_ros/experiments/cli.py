@@ -12,6 +12,8 @@ Each scenario is one subcommand, registered in :data:`SCENARIOS`. To add one (e.
 * ``run(args, progress) -> dict``: the ``results.json`` document
   ``{"scenario", "replicates", "methods": {name: {"success", "steps",
   "learning_iterations"}}, ...}``; call ``progress()`` once per finished replicate,
+* optionally ``finish_arguments(parser, args)``: checks of several options together (errors
+  through ``parser.error``),
 
 and add ``'hexapod': Scenario('help text', 'sela_ros.experiments.hexapod')`` to
 :data:`SCENARIOS`. The CLI writes ``results.json`` and ``figure.png`` for every scenario.
@@ -39,8 +41,10 @@ class Scenario:
 SCENARIOS = {
     'toy': Scenario('the toy simulation: a damaged point robot reaches (2, 2)',
                     'sela_ros.experiments.toy'),
-    'hexapod': Scenario('the damaged hexapod reaches (2, 2)',
+    'hexapod': Scenario('the damaged hexapod (or --robot) reaches (2, 2)',
                         'sela_ros.experiments.hexapod'),
+    'robot': Scenario('the damaged robot (--robot, default the hexapod) reaches (2, 2); the '
+                      'same as hexapod', 'sela_ros.experiments.hexapod'),
     'campaign': Scenario('the hexapod experiment over many damages, goals and maps '
                          '(resumable; a table per damage)', 'sela_ros.experiments.campaign'),
 }
@@ -60,9 +64,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog='sela-experiment',
         description='Reproduce the SELA paper experiments with replicates.')
     sub = parser.add_subparsers(dest='scenario', metavar='SCENARIO', required=True)
+    parser.scenario_parsers = {}  # for the errors of finish_arguments
     for name, scenario in SCENARIOS.items():
         p = sub.add_parser(name, parents=[common], help=scenario.help,
                            description=scenario.help)
+        parser.scenario_parsers[name] = p
         importlib.import_module(scenario.module).add_arguments(p)
         arguments.take_negative_points(p)
     return parser
@@ -71,13 +77,15 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    module = importlib.import_module(SCENARIOS[args.scenario].module)
+    if hasattr(module, 'finish_arguments'):  # checks that need several options together
+        module.finish_arguments(parser.scenario_parsers[args.scenario], args)
     if os.path.exists(args.out) and not os.path.isdir(args.out):
         parser.error(f'--out {args.out!r} exists and is not a directory')
     try:
         os.makedirs(args.out, exist_ok=True)
     except OSError as err:
         parser.error(f'cannot create --out directory {args.out!r}: {err.strerror}')
-    module = importlib.import_module(SCENARIOS[args.scenario].module)
 
     from tqdm import tqdm
 

@@ -76,6 +76,41 @@ def archive_argument(text):
     return str(text)
 
 
+def finish_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """After parsing: the robot, its archive and the damage in its names, checked together.
+
+    ``args.robot`` becomes the archive's robot, ``args.archive`` a path, ``args.damage`` the
+    damage's canonical form."""
+    from sela_ros.core.storage import load_archive
+    from sim_bridge.damage import DamageSpecError
+    from sim_bridge.robots import get_robot, robot_of
+
+    try:
+        wanted = get_robot(args.robot) if args.robot is not None else None
+    except ValueError as err:
+        parser.error(f'--robot: {err}')
+    if args.archive is None:
+        described = wanted or get_robot(None)
+        if not described.archive:
+            parser.error(f'--archive: the {described.name} has no shipped map; build one '
+                         '(docs/robots.md) and give it')
+        try:
+            args.archive = archive_argument(described.archive)
+        except argparse.ArgumentTypeError as err:
+            parser.error(f'--archive: {err}')
+    robot = robot_of(load_archive(args.archive).metadata)
+    if wanted is not None and wanted.name != robot:
+        parser.error(f'--archive {args.archive} is a map of the {robot}, not of the '
+                     f'{wanted.name}')
+    description = get_robot(robot)
+    args.robot = description.name
+    try:
+        args.damage = description.parse_damage(
+            description.default_damage if args.damage is None else args.damage).canonical()
+    except DamageSpecError as err:
+        parser.error(f'--damage: {err}')
+
+
 def _course_map(text):
     """``--map``: a course name or a map file; returns ``(path, Course or None)``."""
     from sela_ros.core.planning import MapError, load_map_file
@@ -91,15 +126,20 @@ def _course_map(text):
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment hexapod`` (the common ones are added by the CLI)."""
-    from sela_ros.core.storage import default_archive_path
+    from sim_bridge.robots import ROBOTS
 
-    parser.add_argument('--archive', type=archive_argument, default=str(default_archive_path()),
-                        help='behaviour-performance map (.npz, or 8d / 2d for the shipped '
-                             'ones; default: the shipped 8-D map, '
-                             'sela_ros/data/hexapod_archive.npz)')
-    parser.add_argument('--damage', type=arguments.damage, default='remove:middle_right',
-                        help="damage spec, e.g. remove:middle_right (default, the paper's), "
-                             'shorten:front_left:0.5, block:rear_right.knee=0.2')
+    parser.add_argument('--robot', default=None,
+                        help=f'the robot: {", ".join(ROBOTS)} or package.module:DESCRIPTION '
+                             "(default: the archive's; the hexapod's shipped 8-D map when no "
+                             '--archive is given)')
+    parser.add_argument('--archive', type=archive_argument, default=None,
+                        help='behaviour-performance map (.npz, or 8d / 2d / a1 for the shipped '
+                             "ones; default: the robot's shipped map, for the hexapod the 8-D "
+                             'one, sela_ros/data/hexapod_archive.npz)')
+    parser.add_argument('--damage', default=None,
+                        help="damage spec in the robot's names, e.g. remove:middle_right (the "
+                             "hexapod's default, the paper's), shorten:front_left:0.5, "
+                             "block:rear_right.knee=0.2 (default: the robot's, docs/robots.md)")
     parser.add_argument('--goal', type=arguments.goal, default=None,
                         help="goal X,Y in metres from the start (default 2,2; with --map: "
                              "the course's goals in order, a mission)")
@@ -271,7 +311,8 @@ class Job:
 def run_method(job: Job):
     """One method on one replicate; returns a dict of plain numbers."""
     from sela_ros.experiments.courses import CourseEnvironment
-    from sim_bridge.experiment_env import HexapodEnvironment
+    from sim_bridge.experiment_env import RobotEnvironment
+    from sim_bridge.robots import robot_of
 
     archive = worker_archive(job.archive)
     # The planner node's map, or the course's: the nodes and the experiments plan alike.
@@ -282,9 +323,10 @@ def run_method(job: Job):
     env_seed, method_seed = job.seed.spawn(2)
     noise = job.noise_seed if job.noise_seed is not None else np.random.default_rng(env_seed)
     start = time.perf_counter()
-    with HexapodEnvironment(archive.params, job.damage, noise_std=job.noise_std, seed=noise,
-                            dt=settings['dt'], gait_duration=settings['gait_duration'],
-                            solver_iterations=settings['solver_iterations']) as sim:
+    with RobotEnvironment(archive.params, job.damage, noise_std=job.noise_std, seed=noise,
+                          dt=settings['dt'], gait_duration=settings['gait_duration'],
+                          solver_iterations=settings['solver_iterations'],
+                          robot=robot_of(archive.metadata)) as sim:
         env = CourseEnvironment(sim, grid) if grid is not None else sim
         problem = make_problem(archive, job.goal, job.lookahead, job.max_steps,
                                true_gr=job.oracle_gr, ite_iterations=job.ite_iterations,
@@ -318,8 +360,10 @@ def run(args, progress=None) -> dict:
     """Run the experiment described by ``args``; returns the results.json document."""
     from sela_ros.core.storage import load_archive
     from sim_bridge.experiment_env import archive_checksum, oracle_table
+    from sim_bridge.robots import robot_of
 
     archive = load_archive(args.archive)
+    robot = robot_of(archive.metadata)
     settings = archive.simulator_settings
     oracle_gr = None
     oracle_seconds = 0.0
@@ -329,7 +373,7 @@ def run(args, progress=None) -> dict:
         gr, fallen = oracle_table(archive.params, args.damage, workers=args.workers,
                                   cache_dir=args.oracle_cache, dt=settings['dt'],
                                   gait_duration=settings['gait_duration'],
-                                  solver_iterations=settings['solver_iterations'])
+                                  solver_iterations=settings['solver_iterations'], robot=robot)
         oracle_seconds = time.perf_counter() - start
         oracle_gr = np.where(fallen[:, None], FALLEN_GR, gr)
         oracle_falls = int(fallen.sum())
@@ -411,7 +455,8 @@ def run(args, progress=None) -> dict:
             summary[name]['runs_with_collisions'] = int(sum(c > 0 for c in m['collisions']))
     return {'scenario': 'hexapod', 'replicates': args.replicates, 'methods': methods,
             'seed': args.seed,
-            'parameters': {'noise_std': args.noise_std, 'max_steps': args.max_steps,
+            'parameters': {'robot': robot, 'noise_std': args.noise_std,
+                           'max_steps': args.max_steps,
                            'damage': args.damage, 'goal': list(goal), 'via': via,
                            'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,
                            'planner': 'grid',

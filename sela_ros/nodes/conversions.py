@@ -16,6 +16,11 @@ defined in one place (and documented in the README):
   judged, error, mean_error, threshold]``, the detector's judgement of that command's
   outcome (fire 1: damage detected, adapt; mean_error -1 before anything was judged).
 
+* the hardware face (``trajectory_msgs/JointTrajectory`` to a
+  ``joint_trajectory_controller``; ``sensor_msgs/Imu`` and full 3-D ``nav_msgs/Odometry``
+  from the robot): :func:`trajectory_to_msg`, :func:`trajectory_from_msg`, :func:`imu_msg`,
+  :func:`odometry_3d_msg`, :func:`tilt`.
+
 Occupancy grids (``nav_msgs/OccupancyGrid``) are in :mod:`sela_ros.nodes.grid_conversions`.
 """
 import math
@@ -26,9 +31,11 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PoseStamped, Quaternion
 from nav_msgs.msg import Odometry, Path
+from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from sela_ros.core import N_PARAMS, geometry
+from sela_ros.core import geometry
 from sela_ros.core.mission.stepper_io import (
     GoalReceived,
     GoalsReceived,
@@ -39,12 +46,23 @@ from sela_ros.core.mission.stepper_io import (
 from sela_ros.core.validation import finite_array
 
 BEHAVIOR_ID_PREFIX = 'behavior_id='
-OUTCOME_FIELDS = ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
-                  'end_x', 'end_y', 'end_yaw', 'fallen', 'sim_time',
-                  'duty_0', 'duty_1', 'duty_2', 'duty_3', 'duty_4', 'duty_5', 'standing_start')
-OUTCOME_LABEL = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS)
+OUTCOME_PREFIX = 'behavior_outcome:'
+#: Most legs an outcome's duty factors may name.
+MAX_LEGS = 64
+
+
+def outcome_fields(legs=6, standing=True):
+    """Fields of an outcome of a robot with ``legs`` feet (one duty factor each)."""
+    return ('behavior_id', 'dx', 'dy', 'dyaw', 'start_x', 'start_y', 'start_yaw',
+            'end_x', 'end_y', 'end_yaw', 'fallen', 'sim_time',
+            *(f'duty_{i}' for i in range(legs))) + (('standing_start',) if standing else ())
+
+
+#: The hexapod's outcome (six duty factors); another robot's names its own number of them.
+OUTCOME_FIELDS = outcome_fields()
+OUTCOME_LABEL = OUTCOME_PREFIX + ','.join(OUTCOME_FIELDS)
 #: The outcome without ``standing_start`` (a driver that cannot tell) is read too.
-OUTCOME_LABEL_WITHOUT_STANDING = 'behavior_outcome:' + ','.join(OUTCOME_FIELDS[:-1])
+OUTCOME_LABEL_WITHOUT_STANDING = OUTCOME_PREFIX + ','.join(OUTCOME_FIELDS[:-1])
 PREDICTION_LABEL = 'prediction:behavior_id,dx,dy,dyaw,sigma'
 VERDICT_LABEL = 'verdict:behavior_id,fire,judged,error,mean_error,threshold'
 
@@ -101,9 +119,14 @@ def _finite_array(values, name, length=None):
 # --- behaviour commands --------------------------------------------------------------------
 
 
-def validate_behavior_params(params):
-    """Return the parameters as a (36,) float array, or raise MessageError saying why not."""
-    array = _finite_array(params, 'behavior', N_PARAMS)
+def validate_behavior_params(params, n_params=None):
+    """Return the parameters as a float array, or raise MessageError saying why not.
+
+    ``n_params``: the robot's number of gait parameters (None: any non-empty length)."""
+    array = _finite_array(params, 'behavior', n_params)
+    if not array.size:
+        raise MessageError('behavior: no parameters; expected the gait\'s parameters, each '
+                           'in [0, 1]')
     out = (array < 0.0) | (array > 1.0)
     if out.any():
         i = int(np.flatnonzero(out)[0])
@@ -121,14 +144,16 @@ def behavior_to_msg(params, behavior_id):
     params = validate_behavior_params(params)
     msg = Float64MultiArray()
     msg.layout.dim = [MultiArrayDimension(label=f'{BEHAVIOR_ID_PREFIX}{int(behavior_id)}',
-                                          size=N_PARAMS, stride=N_PARAMS)]
+                                          size=params.size, stride=params.size)]
     msg.data = params.tolist()
     return msg
 
 
-def behavior_from_msg(msg):
-    """Return ``(params, behavior_id)``; ``behavior_id`` is None when the sender gave none."""
-    params = validate_behavior_params(msg.data)
+def behavior_from_msg(msg, n_params=None):
+    """Return ``(params, behavior_id)``; ``behavior_id`` is None when the sender gave none.
+
+    ``n_params``: the robot's number of gait parameters (None: any non-empty length)."""
+    params = validate_behavior_params(msg.data, n_params)
     behavior_id = None
     if msg.layout.dim:
         label = msg.layout.dim[0].label
@@ -157,10 +182,11 @@ def outcome_to_msg(outcome):
               *np.asarray(outcome.start_pose, float), *np.asarray(outcome.end_pose, float),
               1.0 if outcome.fallen else 0.0, float(outcome.sim_time),
               *np.asarray(outcome.duty_factors, float)]
-    label = OUTCOME_LABEL_WITHOUT_STANDING
+    legs = np.asarray(outcome.duty_factors).size
+    label = OUTCOME_PREFIX + ','.join(outcome_fields(legs, standing=False))
     if outcome.standing_start is not None:
         values.append(1.0 if outcome.standing_start else 0.0)
-        label = OUTCOME_LABEL
+        label = OUTCOME_PREFIX + ','.join(outcome_fields(legs))
     msg = Float64MultiArray()
     msg.layout.dim = [MultiArrayDimension(label=label, size=len(values),
                                           stride=len(values))]
@@ -170,19 +196,22 @@ def outcome_to_msg(outcome):
 
 def outcome_from_msg(msg):
     label = msg.layout.dim[0].label if msg.layout.dim else '(no layout)'
-    if label not in (OUTCOME_LABEL, OUTCOME_LABEL_WITHOUT_STANDING):
-        raise MessageError(f'behavior_outcome: layout label {label!r} is not {OUTCOME_LABEL!r}')
-    values = _finite_array(msg.data, 'behavior_outcome',
-                           len(OUTCOME_FIELDS) - (label != OUTCOME_LABEL))
+    fields = label.removeprefix(OUTCOME_PREFIX).split(',')
+    standing = fields[-1] == 'standing_start'
+    legs = sum(f.startswith('duty_') for f in fields[:MAX_LEGS + 20])
+    if not 0 < legs <= MAX_LEGS or label != OUTCOME_PREFIX + ','.join(
+            outcome_fields(legs, standing)):
+        raise MessageError(f'behavior_outcome: layout label {label!r} is not {OUTCOME_LABEL!r} '
+                           '(or the same with another number of duty factors)')
+    values = _finite_array(msg.data, 'behavior_outcome', len(outcome_fields(legs, standing)))
     behavior_id = values[0]
     if behavior_id < 0 or behavior_id != int(behavior_id):
         raise MessageError(f'behavior_outcome: id {behavior_id} is not a non-negative integer')
     return BehaviorOutcome(behavior_id=int(behavior_id), generic_reward=values[1:4].copy(),
                            start_pose=values[4:7].copy(), end_pose=values[7:10].copy(),
                            fallen=bool(values[10] >= 0.5), sim_time=float(values[11]),
-                           duty_factors=values[12:18].copy(),
-                           standing_start=bool(values[18] >= 0.5) if len(values) > 18
-                           else None)
+                           duty_factors=values[12:12 + legs].copy(),
+                           standing_start=bool(values[-1] >= 0.5) if standing else None)
 
 
 def _labelled(label, values):
@@ -343,6 +372,85 @@ def path_to_msg(path_xy, stamp=0.0, frame_id='odom'):
 def path_from_msg(msg):
     xy = [[p.pose.position.x, p.pose.position.y] for p in msg.poses]
     return _finite_array(xy, 'path').reshape(-1, 2)
+
+
+# --- the hardware face ---------------------------------------------------------------------
+
+
+def duration_to_msg(seconds):
+    from builtin_interfaces.msg import Duration
+
+    stamp = time_to_msg(seconds)
+    return Duration(sec=stamp.sec, nanosec=stamp.nanosec)
+
+
+def trajectory_to_msg(names, times, positions):
+    """A JointTrajectory that starts on receipt (stamp 0, as a joint_trajectory_controller
+    reads it): one point per row of ``positions`` at ``times`` s from the start."""
+    msg = JointTrajectory()
+    msg.joint_names = [str(n) for n in names]
+    for t, row in zip(np.asarray(times, float), np.asarray(positions, float)):
+        msg.points.append(JointTrajectoryPoint(positions=row.tolist(),
+                                               time_from_start=duration_to_msg(t)))
+    return msg
+
+
+def trajectory_from_msg(msg):
+    """``(names, times, positions)`` of a JointTrajectory; each point needs one position per
+    joint (velocities, accelerations and efforts are not used). Raises MessageError."""
+    names = list(msg.joint_names)
+    if not names:
+        raise MessageError('joint_trajectory: no joint names')
+    if not msg.points:
+        raise MessageError('joint_trajectory: no points')
+    rows = []
+    for i, point in enumerate(msg.points):
+        if len(point.positions) != len(names):
+            raise MessageError(f'joint_trajectory: point {i} has {len(point.positions)} '
+                               f'positions for {len(names)} joints')
+        rows.append(point.positions)
+    times = [time_from_msg(point.time_from_start) for point in msg.points]
+    return (names, _finite_array(times, 'joint_trajectory times'),
+            _finite_array(rows, 'joint_trajectory positions').reshape(len(times), len(names)))
+
+
+def _quaternion(q):
+    return Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+
+
+def odometry_3d_msg(xyz, quaternion, stamp, frame_id='odom', child_frame_id='base_link'):
+    """Odometry with the body's full pose (height, roll and pitch too): a motion capture's."""
+    msg = Odometry()
+    msg.header.stamp = time_to_msg(stamp)
+    msg.header.frame_id = frame_id
+    msg.child_frame_id = child_frame_id
+    position = msg.pose.pose.position
+    position.x, position.y, position.z = (float(v) for v in xyz)
+    msg.pose.pose.orientation = _quaternion(quaternion)
+    return msg
+
+
+def imu_msg(quaternion, stamp, frame_id='base_link'):
+    """An Imu with the body's orientation only (no rates or accelerations: covariance -1
+    in their first element, as REP-145 says of a field that is not given)."""
+    msg = Imu()
+    msg.header.stamp = time_to_msg(stamp)
+    msg.header.frame_id = frame_id
+    msg.orientation = _quaternion(quaternion)
+    msg.angular_velocity_covariance[0] = -1.0
+    msg.linear_acceleration_covariance[0] = -1.0
+    return msg
+
+
+def tilt(q):
+    """The angle (rad) between the body's z axis and the world's, from an orientation
+    quaternion message; raises MessageError for a non-finite or zero quaternion."""
+    x, y, z, w = _finite_array([q.x, q.y, q.z, q.w], 'orientation', 4)
+    norm2 = x * x + y * y + z * z + w * w
+    if norm2 < 1e-12:
+        raise MessageError('orientation: the quaternion is zero (no orientation given)')
+    up_z = 1.0 - 2.0 * (x * x + y * y) / norm2
+    return math.acos(max(-1.0, min(1.0, up_z)))
 
 
 # --- diagnostics ---------------------------------------------------------------------------

@@ -1,8 +1,9 @@
 """Evaluation functions of map building: one gait's descriptor, fitness and generic reward.
 
-An *evaluation function* is any picklable callable ``params (36,) -> EvaluationResult``:
-:class:`HexapodEvaluator` (PyBullet, through ``sim_bridge.evaluation.evaluate_gait``) or the
-cheap :class:`SyntheticEvaluator` used by tests and benchmarks.
+An *evaluation function* is any picklable callable ``params (n,) -> EvaluationResult``:
+:class:`RobotEvaluator` (PyBullet, through ``sim_bridge.evaluation.evaluate_gait``, for any
+robot description of ``sim_bridge.robots``; :class:`HexapodEvaluator` is the hexapod's) or
+the cheap :class:`SyntheticEvaluator` used by tests and benchmarks.
 
 Descriptor and fitness (see docs/archive.md): the descriptor is the final ``(x, y)`` of one
 gait in the start frame, the fitness is minus the angle between the final yaw and the
@@ -18,8 +19,9 @@ import numpy as np
 
 from sela_ros.core.geometry import wrap_angle
 
-#: Behaviour descriptors: the final (x, y) in the start frame (2-D), and the paper's 8-D
-#: one that adds the six duty factors (legs in ``sim_bridge.damage.LEG_NAMES`` order).
+#: Behaviour descriptors, with their dimensions on the hexapod: the final (x, y) in the start
+#: frame (2-D), and the paper's 8-D one that adds the duty factors, one per leg in the
+#: description's leg order (2 + legs dimensions on another robot).
 DESCRIPTORS = {'final_xy': 2, 'final_xy_duty_factors': 8}
 
 
@@ -67,13 +69,16 @@ class SyntheticEvaluator:
         descriptor: a key of :data:`DESCRIPTORS`.
     """
 
+    #: Its gaits have as many parameters as the hexapod's.
+    n_params = 36
+
     def __init__(self, delay: float = 0.0, descriptor: str = 'final_xy'):
         if descriptor not in DESCRIPTORS:
             raise ValueError(f'descriptor must be one of {sorted(DESCRIPTORS)}, got '
                              f'{descriptor!r}')
         self.delay = float(delay)
         self.descriptor = descriptor
-        weights = np.random.default_rng(20180219).normal(size=(3, 36))
+        weights = np.random.default_rng(20180219).normal(size=(3, self.n_params))
         self.weights = weights
 
     def __call__(self, params) -> EvaluationResult:
@@ -87,7 +92,7 @@ class SyntheticEvaluator:
         fallen = params[0] > 0.95 and params[1] > 0.95
         desc = gr[:2].copy()
         if self.descriptor == 'final_xy_duty_factors':
-            duty = (np.asarray(params, dtype=np.float64).reshape(6, 6)[:, ::3]).mean(axis=1)
+            duty = (np.asarray(params, dtype=np.float64).reshape(6, -1)[:, ::3]).mean(axis=1)
             desc = np.concatenate([desc, duty])
         return EvaluationResult(not fallen, float(arc_fitness(gr)), desc, gr)
 
@@ -97,8 +102,8 @@ class SyntheticEvaluator:
                 'controller_version': 'synthetic', 'model_version': 'synthetic'}
 
 
-class HexapodEvaluator:
-    """One gait on the simulated hexapod: descriptor final ``(x, y)`` (+ duty factors), arc.
+class RobotEvaluator:
+    """One gait on a simulated robot: descriptor final ``(x, y)`` (+ duty factors), arc.
 
     Picklable: each worker process imports PyBullet and builds its own simulator.
 
@@ -108,11 +113,13 @@ class HexapodEvaluator:
         damage: damage spec understood by ``sim_bridge`` (``'intact'`` for an archive).
         solver_iterations: PyBullet constraint-solver iterations per step.
         descriptor: a key of :data:`DESCRIPTORS`.
+        robot: a robot's name (or ``module:attribute``) for ``sim_bridge.robots.get_robot``;
+            it travels to worker processes by name.
     """
 
     def __init__(self, dt: float = 1.0 / 240.0, gait_duration: float = 3.0,
                  damage: str = 'intact', solver_iterations: int = 50,
-                 descriptor: str = 'final_xy'):
+                 descriptor: str = 'final_xy', robot: str = 'hexapod'):
         if dt <= 0 or gait_duration <= 0:
             raise ValueError(f'dt and gait_duration must be > 0, got {dt}, {gait_duration}')
         if descriptor not in DESCRIPTORS:
@@ -123,13 +130,30 @@ class HexapodEvaluator:
         self.damage = damage
         self.solver_iterations = int(solver_iterations)
         self.descriptor = descriptor
+        self.robot = str(robot)
+
+    def description(self):
+        """The robot's description (imports it, and the simulator's package)."""
+        from sim_bridge.robots import get_robot
+
+        return get_robot(self.robot)
+
+    @property
+    def n_params(self) -> int:
+        """Gait parameters of the robot (the map's solution dimension)."""
+        return self.description().n_params
+
+    @property
+    def dims(self) -> int:
+        """Dimensions of this evaluator's descriptor on its robot."""
+        return self.description().descriptor_dims[self.descriptor]
 
     def __call__(self, params) -> EvaluationResult:
         from sim_bridge.evaluation import evaluate_gait
 
         outcome = evaluate_gait(np.asarray(params, dtype=np.float64), damage=self.damage,
                                 dt=self.dt, gait_duration=self.gait_duration,
-                                solver_iterations=self.solver_iterations)
+                                solver_iterations=self.solver_iterations, robot=self.robot)
         gr = np.asarray(outcome.generic_reward, dtype=np.float64)
         valid = not bool(outcome.fallen) and bool(np.all(np.isfinite(gr)))
         desc = gr[:2].copy()
@@ -141,4 +165,14 @@ class HexapodEvaluator:
         """The simulator settings an archive built with this evaluator must record."""
         from sim_bridge.settings import simulator_settings
 
-        return dict(simulator_settings(self.dt, self.gait_duration, self.solver_iterations))
+        return dict(simulator_settings(self.dt, self.gait_duration, self.solver_iterations,
+                                       robot=self.description()))
+
+
+class HexapodEvaluator(RobotEvaluator):
+    """:class:`RobotEvaluator` of the hexapod."""
+
+    def __init__(self, dt: float = 1.0 / 240.0, gait_duration: float = 3.0,
+                 damage: str = 'intact', solver_iterations: int = 50,
+                 descriptor: str = 'final_xy'):
+        super().__init__(dt, gait_duration, damage, solver_iterations, descriptor, 'hexapod')

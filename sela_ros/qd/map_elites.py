@@ -94,8 +94,13 @@ class MapElites:
     def __init__(self, bounds, evaluate: Callable, executor=None, batch_size: int = 100,
                  emitters: int = 1, n_initial: int | None = None, iso_sigma: float = 0.01,
                  line_sigma: float = 0.2, seed: int = 0, checkpoint_path=None,
-                 checkpoint_every: int = 10, solution_dim: int = 36):
+                 checkpoint_every: int = 10, solution_dim: int | None = None):
         _, _, _, Scheduler = ribs_parts()
+        if solution_dim is None:  # the robot's gait parameters, as its evaluator says
+            solution_dim = getattr(evaluate, 'n_params', None)
+            if solution_dim is None:
+                raise ValueError('solution_dim: give the number of gait parameters (the '
+                                 'evaluation function has no n_params)')
         bounds = np.asarray(bounds, dtype=np.float64)
         if bounds.ndim != 2 or bounds.shape[1] != 2 or not np.all(np.isfinite(bounds)) \
                 or not np.all(bounds[:, 1] > bounds[:, 0]):
@@ -412,11 +417,12 @@ def default_run(evaluate: Callable, dims: Sequence[int] = (64, 64),
                 bounds: Sequence[Sequence[float]] = ((-1.0, 1.0), (-1.0, 1.0)),
                 batch_size: int = 100, n_initial: int | None = None, seed: int = 0,
                 executor=None, checkpoint_path=None, checkpoint_every: int = 10,
-                emitters: int = 1) -> GridMapElites:
+                emitters: int = 1, solution_dim: int | None = None) -> GridMapElites:
     """A fresh 2-D :class:`GridMapElites` with the project's defaults (iso-line emitters)."""
     return GridMapElites(dims, bounds, evaluate, executor=executor, batch_size=batch_size,
                          emitters=emitters, n_initial=n_initial, seed=seed,
-                         checkpoint_path=checkpoint_path, checkpoint_every=checkpoint_every)
+                         checkpoint_path=checkpoint_path, checkpoint_every=checkpoint_every,
+                         solution_dim=solution_dim)
 
 
 __all__ = ['CHECKPOINT_FORMAT_VERSION', 'GridMapElites', 'MapElites', 'default_run']

@@ -1,4 +1,4 @@
-"""``sela-build-archive``: build the hexapod's behaviour-performance map with MAP-Elites.
+"""``sela-build-archive``: build a robot's behaviour-performance map with MAP-Elites.
 
 Example (the shipped archive, see docs/archive.md)::
 
@@ -12,6 +12,10 @@ CVT archive for the paper's 8-D map (final x, y + six duty factors, physics
     sela-build-archive --descriptor 8d --cells 60000 --evaluations 200000 --workers 1 \\
         --checkpoint ~/.cache/sela_ros/mapbuild/map8d.checkpoint.pkl \\
         --out ~/.cache/sela_ros/mapbuild/map8d.npz
+
+Another robot's map: ``--robot NAME`` (a description of ``sim_bridge.robots``, or
+``package.module:DESCRIPTION``); its parameter count, duty factors (one per leg) and
+descriptor bounds come from its description (docs/robots.md).
 
 (``scripts/build_map8d.sh``; 60,000 cells because part of the 8-D box holds (x, y, duty)
 combinations no gait reaches, and the map should hold 10,000 elites or more; ``--resume
@@ -36,17 +40,18 @@ from pathlib import Path
 
 import numpy as np
 
-from sela_ros.core import N_PARAMS
 from sela_ros.core.storage import Archive
-from sela_ros.qd.evaluators import HexapodEvaluator, SyntheticEvaluator
+from sela_ros.qd.evaluators import RobotEvaluator, SyntheticEvaluator
 from sela_ros.qd.executors import DaskEvaluator, ProcessPoolEvaluator, SerialEvaluator
 from sela_ros.qd.map_elites import GridMapElites, default_run
 
 DEFAULT_GRID = (64, 64)
 DEFAULT_BOUNDS = (-0.6, 0.6, -0.6, 0.6)
 FITNESS_NAME = 'arc_yaw_error'
-#: --descriptor choices: the 2-D grid map and the paper's 8-D CVT map.
-DESCRIPTOR_NAMES = {'2d': 'final_xy', '8d': 'final_xy_duty_factors'}
+#: --descriptor choices: the 2-D grid map and the paper's CVT map over final x, y and the
+#: duty factors (8-D on the hexapod; ``duty`` names it on any robot).
+DESCRIPTOR_NAMES = {'2d': 'final_xy', '8d': 'final_xy_duty_factors',
+                    'duty': 'final_xy_duty_factors'}
 
 # Thresholds of the gait families that docs/archive.md and the summary count.
 FORWARD_DX, SIDEWAYS_DY, TURNING_DYAW = 0.1, 0.1, 0.5
@@ -70,7 +75,10 @@ def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='sela-build-archive',
         description='Build the behaviour-performance map (MAP-Elites over final (x, y), '
-                    'arc fitness) of the simulated intact hexapod.')
+                    'arc fitness) of a simulated intact robot (the hexapod by default).')
+    parser.add_argument('--robot', default='hexapod',
+                        help='the robot: hexapod (default), a1, toy, or '
+                             'package.module:DESCRIPTION (docs/robots.md)')
     parser.add_argument('--evaluations', type=_positive_int, required=True,
                         help='total number of gait evaluations')
     parser.add_argument('--batch-size', type=_positive_int, default=200,
@@ -93,8 +101,8 @@ def make_parser() -> argparse.ArgumentParser:
                              'no evaluation, no checkpoint written, so it is safe beside the '
                              'build that is still running')
     parser.add_argument('--descriptor', choices=sorted(DESCRIPTOR_NAMES), default='2d',
-                        help='2d: final (x, y) on a grid; 8d: final (x, y) + six duty factors '
-                             'on a CVT archive (the paper\'s map; default 2d)')
+                        help='2d: final (x, y) on a grid; 8d (or duty): final (x, y) + one duty '
+                             'factor per leg on a CVT archive (the paper\'s map; default 2d)')
     parser.add_argument('--cells', type=_positive_int, default=10000,
                         help='CVT cells of the 8d map (default 10000)')
     parser.add_argument('--regrid', type=_positive_int, default=None, metavar='CELLS',
@@ -140,11 +148,16 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
     if (args.resume or args.export) and not _checkpoint_path(args).exists():
         option = '--export' if args.export else '--resume'
         parser.error(f'{option}: no checkpoint at {_checkpoint_path(args)}')
-    if args.regrid is not None and (args.descriptor != '8d' or not args.resume):
+    if args.regrid is not None and (not _is_cvt(args) or not args.resume):
         parser.error('--regrid takes an 8d run to resume: add --descriptor 8d --resume')
     args.resume = args.resume or args.export
     if args.out.suffix != '.npz':
         parser.error(f'--out must end in .npz, got {args.out}')
+
+
+def _is_cvt(args: argparse.Namespace) -> bool:
+    """The duty-factor map (a CVT archive), whatever name ``--descriptor`` gave it."""
+    return DESCRIPTOR_NAMES[args.descriptor] == 'final_xy_duty_factors'
 
 
 def _checkpoint_path(args: argparse.Namespace) -> Path:
@@ -157,7 +170,7 @@ def _physics(args: argparse.Namespace) -> tuple[float, int]:
     """dt and solver iterations: the options, else the defaults of the descriptor's map."""
     from sim_bridge.settings import FAST_SETTINGS, SIM_DEFAULTS
 
-    defaults = FAST_SETTINGS if args.descriptor == '8d' else SIM_DEFAULTS
+    defaults = FAST_SETTINGS if _is_cvt(args) else SIM_DEFAULTS
     dt = args.dt if args.dt is not None else defaults['dt']
     iterations = (args.solver_iterations if args.solver_iterations is not None
                   else defaults['solver_iterations'])
@@ -176,10 +189,11 @@ def _format_duration(seconds: float) -> str:
 def time_per_evaluation(evaluate, n: int = 3, seed: int = 12345) -> float:
     """Seconds per evaluation here, measured on ``n`` random gaits after one warm-up."""
     rng = np.random.default_rng(seed)
-    evaluate(rng.random(N_PARAMS))  # builds the simulator (URDF, PyBullet) once per process
+    n_params = evaluate.n_params
+    evaluate(rng.random(n_params))  # builds the simulator (URDF, PyBullet) once per process
     start = time.perf_counter()
     for _ in range(n):
-        evaluate(rng.random(N_PARAMS))
+        evaluate(rng.random(n_params))
     return (time.perf_counter() - start) / n
 
 
@@ -230,15 +244,26 @@ def archive_figure(archive: Archive, path: str | os.PathLike) -> Path:
     return path
 
 
-def _new_cvt_run(args, evaluate, executor, checkpoint: Path):
-    """A fresh 8-D run: centroids by k-means (minutes for 10,000 cells, once; they are in
-    the checkpoint from then on), a CVT archive and iso-line emitters."""
-    from sela_ros.qd.cvt import XY_DUTY_BOUNDS, CVTMapElites, make_centroids
+def _cvt_bounds(evaluate):
+    """Descriptor ranges of the duty-factor map: the robot's (its reach, one duty factor per
+    leg), the hexapod's for the synthetic evaluation."""
+    from sela_ros.qd.cvt import XY_DUTY_BOUNDS
 
+    if isinstance(evaluate, RobotEvaluator):
+        return evaluate.description().descriptor_bounds()
+    return XY_DUTY_BOUNDS
+
+
+def _new_cvt_run(args, evaluate, executor, checkpoint: Path):
+    """A fresh CVT run: centroids by k-means (minutes for 10,000 cells, once; they are in
+    the checkpoint from then on), a CVT archive and iso-line emitters."""
+    from sela_ros.qd.cvt import CVTMapElites, make_centroids
+
+    bounds = _cvt_bounds(evaluate)
     start = time.perf_counter()
-    centroids = make_centroids(args.cells, XY_DUTY_BOUNDS, seed=args.seed)
+    centroids = make_centroids(args.cells, bounds, seed=args.seed)
     print(f'{args.cells} CVT centroids in {time.perf_counter() - start:.0f} s', flush=True)
-    return CVTMapElites(centroids, XY_DUTY_BOUNDS, evaluate, executor,
+    return CVTMapElites(centroids, bounds, evaluate, executor,
                         batch_size=args.batch_size, emitters=args.emitters,
                         n_initial=args.initial or 5 * args.batch_size,
                         seed=args.seed, checkpoint_path=checkpoint,
@@ -246,9 +271,9 @@ def _new_cvt_run(args, evaluate, executor, checkpoint: Path):
 
 
 def _regrid(parser, run, cells: int, seed: int) -> None:
-    """``--regrid``: the resumed 8-D run goes on in a CVT of ``cells`` cells (written to its
+    """``--regrid``: the resumed CVT run goes on in a CVT of ``cells`` cells (written to its
     checkpoint at once, so that the next resume starts from it)."""
-    from sela_ros.qd.cvt import XY_DUTY_BOUNDS, make_centroids
+    from sela_ros.qd.cvt import make_centroids
 
     current = int(run.scheduler.archive.cells)
     if cells == current:
@@ -259,7 +284,7 @@ def _regrid(parser, run, cells: int, seed: int) -> None:
     start = time.perf_counter()
     # Fewer samples and Lloyd iterations than a fresh run's: minutes, not an hour, for tens
     # of thousands of cells (the cells need not be perfectly even).
-    centroids = make_centroids(cells, XY_DUTY_BOUNDS, seed=seed, samples=2 * cells,
+    centroids = make_centroids(cells, run.bounds, seed=seed, samples=2 * cells,
                                iterations=10)
     before = run.progress_info()
     elites = run.regrid(centroids)
@@ -287,8 +312,9 @@ def main(argv: list[str] | None = None) -> int:
         settings = evaluate.settings(dt, args.gait_duration)
     else:
         try:
-            evaluate = HexapodEvaluator(dt=dt, gait_duration=args.gait_duration,
-                                        solver_iterations=iterations, descriptor=descriptor)
+            evaluate = RobotEvaluator(dt=dt, gait_duration=args.gait_duration,
+                                      solver_iterations=iterations, descriptor=descriptor,
+                                      robot=args.robot)
             settings = evaluate.settings()
         except ValueError as exc:
             parser.error(str(exc))
@@ -307,7 +333,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.dask_scheduler:  # more processes than cores do not go faster
             parallel = min(parallel, os.cpu_count() or 1)
         if args.resume and checkpoint.exists():
-            if args.descriptor == '8d':
+            if _is_cvt(args):
                 from sela_ros.qd.cvt import CVTMapElites
 
                 resume = CVTMapElites.resume
@@ -325,7 +351,7 @@ def main(argv: list[str] | None = None) -> int:
                   f'{run.progress_info()}', flush=True)
             if args.regrid is not None and not args.export:
                 _regrid(parser, run, args.regrid, args.seed)
-        elif args.descriptor == '8d':
+        elif _is_cvt(args):
             run = _new_cvt_run(args, evaluate, executor, checkpoint)
             run.info = {'settings': settings, 'seed': args.seed}
         else:
@@ -335,7 +361,7 @@ def main(argv: list[str] | None = None) -> int:
                               n_initial=args.initial or 5 * args.batch_size, seed=args.seed,
                               executor=executor, checkpoint_path=checkpoint,
                               checkpoint_every=args.checkpoint_every,
-                              emitters=args.emitters)
+                              emitters=args.emitters, solution_dim=evaluate.n_params)
             run.info = {'settings': settings, 'seed': args.seed}
         remaining = 0 if args.export else max(0, args.evaluations - run.n_evaluations)
         start = time.perf_counter()
@@ -353,7 +379,7 @@ def main(argv: list[str] | None = None) -> int:
     archive = run.to_archive(**settings, descriptor_name=descriptor,
                              fitness_name=FITNESS_NAME, seed=run.info.get('seed', args.seed),
                              damage='intact', batch_size=run.config['batch_size'],
-                             evaluator='synthetic' if args.synthetic else 'hexapod')
+                             evaluator='synthetic' if args.synthetic else evaluate.robot)
     archive.save(args.out)
     size = args.out.stat().st_size
     # run.elapsed and the counters survive resumes, so these are figures of the whole build.

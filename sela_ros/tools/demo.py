@@ -18,6 +18,20 @@ from pathlib import Path
 from sela_ros.experiments import arguments
 
 NODES = ('sim_bridge', 'planner', 'damage_detector', 'sela_adapter')
+#: With --interface trajectory: the gait executor on the simulator's hardware face, its
+#: observed odometry and IMU (with the robot's own fall test: :func:`simulated_hardware`).
+#: The simulator's state comes every publish_period (0.5 s) of sim time during a gait, which
+#: a loaded machine may stretch past a second of wall time: a longer odometry.timeout.
+SIMULATED_HARDWARE = {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
+                      'odometry.timeout': 5.0}
+
+
+def simulated_hardware(description):
+    """The gait executor's parameters on the simulator's hardware face for ``description``:
+    :data:`SIMULATED_HARDWARE`, the robot and the simulator's fall test for it."""
+    return {**SIMULATED_HARDWARE, 'robot': description.name,
+            'fall.tilt': float(description.fall_tilt),
+            'fall.min_height': float(description.fall_height)}
 
 
 def _course(text):
@@ -30,12 +44,18 @@ def _course(text):
 
 
 def build_parser():
+    from sim_bridge.robots import ROBOTS
+
     parser = argparse.ArgumentParser(
-        prog='sela-demo', description='The damaged hexapod learns to walk to its goal while '
-        'walking there: four ROS 2 nodes over DDS (loopback only).')
-    parser.add_argument('--damage', type=arguments.damage, default='remove:middle_right',
-                        help="damage spec, e.g. 'remove:middle_right' (default), "
-                        "'shorten:front_left:0.5', 'block:rear_right.knee', 'intact'")
+        prog='sela-demo', description='The damaged hexapod (or another robot) learns to walk '
+        'to its goal while walking there: four ROS 2 nodes over DDS (loopback only).')
+    parser.add_argument('--robot', default='hexapod',
+                        help=f'the simulated robot: {", ".join(ROBOTS)} (default: %(default)s; '
+                        'docs/robots.md)')
+    parser.add_argument('--damage', default=None,
+                        help="damage spec in the robot's names, e.g. 'remove:middle_right' "
+                        "(the hexapod's default), 'shorten:front_left:0.5', "
+                        "'block:rear_right.knee', 'intact' (default: the robot's)")
     parser.add_argument('--goal', type=arguments.goal, default=None, metavar='X,Y',
                         help="goal in the odom frame, metres (default: 2,2; with --course: "
                         "the course's goals, a mission)")
@@ -45,9 +65,14 @@ def build_parser():
                         "visits the course's goals in order")
     parser.add_argument('--seed', type=int, default=0, help='observation-noise seed')
     parser.add_argument('--gui', action='store_true', help="show PyBullet's window")
+    parser.add_argument('--interface', choices=('behavior', 'trajectory'), default='behavior',
+                        help='behavior: the simulator plays the gaits; trajectory: the '
+                        "hardware path, gait_executor on the simulator's ros2_control face "
+                        '(docs/hardware.md)')
     parser.add_argument('--params-file', default=None,
                         help='parameter YAML (default: the installed config/sela.yaml)')
-    parser.add_argument('--archive', default='', help='archive file (default: shipped one)')
+    parser.add_argument('--archive', default='',
+                        help="archive file (default: the robot's shipped one)")
     parser.add_argument('--out', default='out/demo', help='output folder (default: %(default)s)')
     parser.add_argument('--timeout', type=float, default=600.0,
                         help='wall-clock seconds before giving up (default: %(default)s)')
@@ -63,9 +88,32 @@ def build_parser():
     return parser
 
 
+def _robot_and_damage(parser, args):
+    """The robot's description and the damage in its names (canonical); errors through the
+    parser."""
+    from sim_bridge.damage import DamageSpecError
+    from sim_bridge.robots import get_robot
+
+    try:
+        description = get_robot(args.robot)
+    except ValueError as err:
+        parser.error(f'--robot: {err}')
+    try:
+        damage = description.parse_damage(
+            description.default_damage if args.damage is None else args.damage).canonical()
+    except DamageSpecError as err:
+        parser.error(f'--damage: {err}')
+    if not args.archive and not description.archive:
+        parser.error(f'--archive: the {description.name} has no shipped map; give one')
+    return description, damage
+
+
 def main(argv=None):
-    args = build_parser().parse_args(argv)
-    damage = args.damage
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    description, damage = _robot_and_damage(parser, args)
+    # Both the simulator (its physics) and the adapter (its gaits) take the robot's map.
+    archive = args.archive or description.archive
     map_path, course = args.course or (None, None)
     # A course without --goal: its mission (goals in order); else the one goal.
     args.goals = [list(g) for g in course.goals] if course and args.goal is None else \
@@ -89,29 +137,37 @@ def main(argv=None):
     procs = {}
     logs = {}
     try:
-        for name in NODES:
+        hardware = args.interface == 'trajectory'
+        for name in NODES + (('gait_executor',) if hardware else ()):
             cmd = [str(executable(name)), '--ros-args', '--params-file', params_file]
+            if name == 'gait_executor':  # the robot and the gait's length of the map
+                from sela_ros.core.storage import resolve_archive_path
+                from sim_bridge.settings import read_archive_settings
+
+                duration = read_archive_settings(resolve_archive_path(archive))['gait_duration']
+                cmd += ['-p', f'gait_duration:={duration}']
+                cmd += [a for key, value in simulated_hardware(description).items()
+                        for a in ('-p', f'{key}:={value}')]
             if name == 'sim_bridge':
-                cmd += ['-p', f'damage:={damage}', '-p', f'seed:={args.seed}',
-                        '-p', f'sim.gui:={str(args.gui).lower()}']
-                if args.archive:  # the simulator runs with the map's physics
-                    cmd += ['-p', f'archive:={args.archive}']
+                cmd += ['-p', f'robot:={description.name}', '-p', f'damage:={damage}',
+                        '-p', f'seed:={args.seed}', '-p', f'sim.gui:={str(args.gui).lower()}',
+                        '-p', f'archive:={archive}',  # the simulator runs the map's physics
+                        '-p', f'interface:={args.interface}']
             if name == 'planner' and map_path:
                 cmd += ['-p', f'map.file:={Path(map_path).resolve()}']
             if name == 'sela_adapter':
                 state_file = out / 'sela_adapter_state.json'
                 if not args.keep_learning and state_file.exists():
                     state_file.unlink()
-                cmd += ['-p', f'state_file:={state_file.resolve()}']
-                if args.archive:
-                    cmd += ['-p', f'archive:={args.archive}']
+                cmd += ['-p', f'state_file:={state_file.resolve()}',
+                        '-p', f'archive:={archive}']
             logs[name] = open(out / f'{name}.log', 'w')  # noqa: SIM115
             to_file = not args.node_logs
             procs[name] = subprocess.Popen(
                 cmd, env=env, stdout=logs[name] if to_file else None,
                 stderr=subprocess.STDOUT if to_file else None)
         goals = ', '.join(f'({g[0]}, {g[1]})' for g in args.goals)
-        print(f"sela-demo: damage '{damage}', goal(s) {goals}, seed "
+        print(f"sela-demo: {description.name}, damage '{damage}', goal(s) {goals}, seed "
               f"{args.seed}, ROS_DOMAIN_ID={env.get('ROS_DOMAIN_ID', '0')}, nodes: "
               + ', '.join(f'{n}[{p.pid}]' for n, p in procs.items()), flush=True)
         summary = run_client(args, damage, out, procs)

@@ -9,15 +9,22 @@ import sys
 
 
 def node_parameters():
-    """``{node name: (Spec, ...)}`` for the four nodes, as each declares them."""
+    """``{node name: (Spec, ...)}`` for the four nodes and the gait executor, as each
+    declares them."""
     from sela_ros.core.detection import DetectorConfig
-    from sela_ros.nodes import adapter_params, damage_detector_node, planner_node
+    from sela_ros.nodes import (
+        adapter_params,
+        damage_detector_node,
+        gait_executor_node,
+        planner_node,
+    )
     from sela_ros.nodes import interface as ifc
     from sim_bridge import node as sim_node
 
     return {ifc.SIM_BRIDGE: sim_node.PARAMETERS, ifc.PLANNER: planner_node.PARAMETERS,
             ifc.DAMAGE_DETECTOR: damage_detector_node.parameters(DetectorConfig()),
-            ifc.SELA_ADAPTER: adapter_params.PARAMETERS}
+            ifc.SELA_ADAPTER: adapter_params.PARAMETERS,
+            ifc.GAIT_EXECUTOR: gait_executor_node.PARAMETERS}
 
 
 def _default(spec):
@@ -33,8 +40,9 @@ def _default(spec):
 def markdown():
     """The parameter reference, one table per node."""
     out = ['# Parameters', '',
-           'Every parameter of the four nodes, with its default, the values it takes and whether',
-           'it can change at run time (`ros2 param set`); written from the code by',
+           'Every parameter of the four nodes and of the gait executor (docs/hardware.md), with',
+           'its default, the values it takes and whether it can change at run time',
+           '(`ros2 param set`); written from the code by',
            '`python -m sela_ros.tools.parameter_docs`. `config/sela.yaml` sets each to the same',
            'default, keyed `/**/<node>` so that it applies in any namespace.', '']
     for node, specs in node_parameters().items():

@@ -61,6 +61,19 @@ def test_demo_reaches_goal_and_writes_summary_plot_and_mcap(tmp_path, ros_env):
     assert draw(recording, tmp_path / 'markers.png').stat().st_size > 10_000
 
 
+def test_demo_runs_the_hardware_path_with_interface_trajectory(tmp_path, ros_env):
+    out = tmp_path / 'demo'
+    proc = subprocess.run(
+        [str(executable('sela-demo')), '--goal', '1.0,0.6', '--seed', '2', '--out', str(out),
+         '--timeout', '400', '--interface', 'trajectory'],
+        env=ros_env, capture_output=True, text=True, timeout=480)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['success'] is True and summary['steps'] > 0
+    assert 'interface trajectory' in (out / 'sim_bridge.log').read_text()
+    assert 'gait executor ready' in (out / 'gait_executor.log').read_text()
+
+
 def test_demo_rejects_bad_arguments_with_usage(ros_env):
     for args in (['--damage', 'remove:middle_centre'], ['--goal', '2;2']):
         proc = subprocess.run([str(executable('sela-demo')), *args], env=ros_env,

@@ -12,6 +12,7 @@ from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.parameter import parameter_value_to_python
 
 from sela_ros.tools.parameter_docs import node_parameters
+from sim_bridge.trajectory import joint_names
 
 from ros_graph import Client, NodeProcesses
 
@@ -30,6 +31,11 @@ CHANGED = {
     'sela_adapter': {'priors': 'none', 'priors.max.misfit': 0.5, 'goal.eps': 0.15,
                      'gp.kernel.sigma': 0.25, 'planner.horizon': 0,
                      'priors.weights.sd': 'none'},
+    # Every array set: ROS cannot write an empty typed array in YAML.
+    'gait_executor': {'odometry_topic': 'mocap/odom', 'settle_time': 0.1,
+                      'fall.min_height': 0.03,
+                      'joint_names': '[' + ', '.join(f'robot_{n}' for n in joint_names()) + ']',
+                      'joint_limits': '[' + ', '.join(['-0.5, 0.5'] * len(joint_names())) + ']'},
 }
 
 
@@ -41,6 +47,10 @@ EXPECTED = {
     'sela_adapter': {'priors.tables': 'none', 'priors.max_misfit': 0.5, 'goal.eps': 0.15,
                      'gp.kernel.sigma': 0.25, 'planner.horizon': 'auto',
                      'fall.kernel.sigma': 'auto', 'priors.weights.sd': 'none'},
+    'gait_executor': {'odometry_topic': 'mocap/odom', 'settle_time': 0.1,
+                      'fall.min_height': 0.03,
+                      'joint_names': [f'robot_{n}' for n in joint_names()],
+                      'joint_limits': [-0.5, 0.5] * len(joint_names())},
 }
 
 

@@ -29,7 +29,31 @@ def test_behavior_round_trip(params, behavior_id):
 def test_behavior_of_wrong_length_is_rejected(params):
     msg = Float64MultiArray(data=params)
     with pytest.raises(conv.MessageError, match='expected 36 values'):
-        conv.behavior_from_msg(msg)
+        conv.behavior_from_msg(msg, 36)
+
+
+@given(st.lists(unit, min_size=1, max_size=20), st.integers(0, 2**40))
+def test_behavior_of_another_robot_round_trips_with_its_own_length(params, behavior_id):
+    out, got_id = conv.behavior_from_msg(conv.behavior_to_msg(params, behavior_id),
+                                         len(params))
+    assert got_id == behavior_id and np.array_equal(out, np.array(params))
+    with pytest.raises(conv.MessageError, match=f'expected {len(params) + 1} values'):
+        conv.behavior_from_msg(conv.behavior_to_msg(params, behavior_id), len(params) + 1)
+
+
+def test_behavior_without_parameters_is_rejected():
+    with pytest.raises(conv.MessageError, match='no parameters'):
+        conv.behavior_from_msg(Float64MultiArray(data=[]))
+
+
+@given(st.integers(1, 12), st.booleans())
+def test_outcome_of_a_robot_with_other_legs_round_trips(legs, standing):
+    outcome = conv.BehaviorOutcome(behavior_id=7, generic_reward=np.array([0.1, -0.2, 0.3]),
+                                   start_pose=np.zeros(3), end_pose=np.ones(3),
+                                   duty_factors=np.linspace(0, 1, legs), standing_start=standing)
+    back = conv.outcome_from_msg(conv.outcome_to_msg(outcome))
+    assert np.array_equal(back.duty_factors, outcome.duty_factors)
+    assert back.standing_start is standing and back.behavior_id == 7
 
 
 @given(st.integers(0, 35), st.sampled_from([math.nan, math.inf, -math.inf, -0.1, 1.5]))

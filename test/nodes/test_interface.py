@@ -60,3 +60,16 @@ def test_what_a_decision_depends_on_is_reliable_and_kept_for_late_joiners():
     # /goal_pose as RViz's 2D Goal Pose tool and nav2: reliable, volatile.
     assert ifc.GOAL.qos.reliability == QoSReliabilityPolicy.RELIABLE
     assert ifc.GOAL.qos.durability == QoSDurabilityPolicy.VOLATILE
+
+
+def test_the_hardware_faces_names_are_relative_and_apart_from_the_stacks():
+    names = {t.root_name for t in ifc.HARDWARE_TOPICS}
+    assert names == {'/joint_trajectory_controller/joint_trajectory', '/hexapod/imu',
+                     '/hexapod/odom_observed', '/gait_executor/alive'}
+    assert not names & {t.root_name for t in ifc.TOPICS}  # there only on the hardware path
+    assert all(not t.name.startswith('/') for t in ifc.HARDWARE_TOPICS)
+    assert ifc.GAIT_EXECUTOR not in ifc.NODES and ifc.GAIT_EXECUTOR in ifc.ALIVE
+    from rclpy.qos import QoSReliabilityPolicy
+
+    # What a robot's sensors publish best effort is still heard.
+    assert ifc.SENSOR_QOS.reliability == QoSReliabilityPolicy.BEST_EFFORT

@@ -70,7 +70,9 @@ def test_auto_and_none_are_spelled_as_words_everywhere():
                      ('sela_adapter', 'outcome.max_displacement'): 'auto',
                      ('sela_adapter', 'acquisition.caution'): 'none',
                      ('sela_adapter', 'priors.max_misfit'): 'none',
-                     ('sela_adapter', 'priors.weights.sd'): 'none'}
+                     ('sela_adapter', 'priors.weights.sd'): 'none',
+                     ('gait_executor', 'fall.min_height'): 'none',
+                     ('gait_executor', 'trajectory_rate'): 'auto'}
     shipped = _yaml()
     docs = (ROOT / 'docs' / 'parameters.md').read_text()
     for (node, name), word in words.items():

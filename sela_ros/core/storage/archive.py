@@ -2,7 +2,7 @@
 where the shipped archives live.
 
 An :class:`Archive` is what MAP-Elites leaves behind (see :mod:`sela_ros.qd.map_elites`): for
-each of its ``M`` elites the 36 controller parameters, the raw behaviour descriptor, the
+each of its ``M`` elites the robot's controller parameters, the raw behaviour descriptor, the
 generic reward ``(dx, dy, dyaw)`` it produced on the simulated intact robot and its fitness,
 plus a metadata dict that says how the map was built. SELA uses the generic reward as the
 prior mean of its GPs and the normalised descriptors as their inputs.
@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from sela_ros.core import N_PARAMS
 from sela_ros.core.storage.npz_files import NpzTooLarge, check_npz_size
 from sela_ros.core.storage.persistence import atomic_write
 from sela_ros.core.validation import ImplausibleOutcome, check_generic_rewards
@@ -114,7 +113,8 @@ class Archive:
     """A behaviour-performance map.
 
     Attributes:
-        params: ``(M, 36)`` controller parameters in ``[0, 1]``.
+        params: ``(M, n)`` controller parameters in ``[0, 1]`` (``n`` the robot's: 36 for the
+            hexapod).
         descriptors: ``(M, d)`` raw behaviour descriptors (the default descriptor is the final
             ``(x, y)`` in metres, in the robot's frame at the start of the gait).
         generic_reward: ``(M, 3)`` displacement ``(dx, dy, dyaw)`` on the intact robot, in the
@@ -192,9 +192,9 @@ class Archive:
         holds the six duty factors, the gait's support (their sum, the mean number of feet
         on the ground); None for other maps."""
         if self.metadata.get('descriptor_name') != DUTY_FACTOR_DESCRIPTOR \
-                or self.descriptors.shape[1] != 8:
+                or self.descriptors.shape[1] < 3:
             return None
-        return self.descriptors[:, 2:8].sum(axis=1)
+        return self.descriptors[:, 2:].sum(axis=1)
 
     @property
     def simulator_settings(self) -> dict:
@@ -241,8 +241,9 @@ def atomic_savez(path: str | os.PathLike, **arrays: np.ndarray) -> None:
 def _validate(archive: Archive) -> None:
     params, desc = archive.params, archive.descriptors
     reward, fitness = archive.generic_reward, archive.fitness
-    if params.ndim != 2 or params.shape[1] != N_PARAMS:
-        raise ArchiveError(f'params must have shape (M, {N_PARAMS}), got {params.shape}')
+    if params.ndim != 2 or params.shape[1] < 1:
+        raise ArchiveError(f'params must have shape (M, n) with n >= 1 (the robot\'s gait '
+                           f'parameters), got {params.shape}')
     m = params.shape[0]
     if desc.ndim != 2 or desc.shape[0] != m or desc.shape[1] < 1:
         raise ArchiveError(f'descriptors must have shape ({m}, d) with d >= 1, got {desc.shape}')
