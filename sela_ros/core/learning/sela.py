@@ -183,6 +183,10 @@ class SELA:
         # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
         # the mixture of the tables.
         self._prior_scores = {'table': 0.0, 'mixture': 0.0}
+        # How much better the affine map of the prior mean (gp.mean.affine) predicted every
+        # step before it was learnt than the prior mean as it is (log-likelihood ratio): the
+        # map is used only while it predicts better.
+        self._affine_score = 0.0
         self._mixture_fit = None
         # Squared planar error of each untried gait's predicted landing, as it was before the
         # gait was learnt (acquisition.caution: how wrong the prior is for this robot).
@@ -370,6 +374,13 @@ class SELA:
         return table if weights is None else affine_mean.apply_affine(weights, base)
 
     def _affine_weights(self, base):
+        """The affine map of the prior mean ``base`` in use (:meth:`_fit_affine`), or None:
+        off, or it has not predicted the steps better than the prior mean as it is."""
+        if self._affine_score <= 0.0:
+            return None
+        return self._fit_affine(base)
+
+    def _fit_affine(self, base):
         """The affine map (:func:`~sela_ros.core.learning.affine_mean.fit_affine`) of the
         prior mean ``base`` learnt from the steps that stayed up, or None (off, or no such
         step)."""
@@ -545,6 +556,8 @@ class SELA:
         if self.priors is not None and len(self.priors) and self._gp.num_samples \
                 and self.config.priors_weights_sd is not None and valid:
             self._score_priors(int(index), observed, bool(standing_start))
+        if valid and not hedged and self.config.gp_mean_affine is not None:
+            self._score_affine(int(index), observed, bool(standing_start))
         self._gp.add_sample(index, observed_gr)
         self._standing.append(bool(standing_start))
 
@@ -566,6 +579,22 @@ class SELA:
                 rows = affine_mean.apply_affine(weights, rows)
             predicted = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
         self._surprises.append(float(np.sum((observed[:2] - predicted[:2]) ** 2)))
+
+    def _score_affine(self, index, observed, standing) -> None:
+        """Add how much better the affine map fitted to the steps before predicted this one
+        than the prior mean as it is (log-likelihoods of the damage priors' error model)."""
+        table = self._prior_mean(self.select_prior())
+        base = self._prior if table is None else table
+        weights = self._fit_affine(base)
+        if weights is None:
+            return
+        idx, _ = self.observations
+        rows = base[np.append(idx, index)]
+        mapped = affine_mean.apply_affine(weights, rows)
+        plain = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
+        fitted = self._gp.mean_at_with_prior(index, mapped[:-1], mapped[-1])
+        self._affine_score += prior_mixture.step_log_likelihood(observed - fitted, standing) \
+            - prior_mixture.step_log_likelihood(observed - plain, standing)
 
     def _landing_variance(self, var):
         """Per gait, the variance of its landing if caution is on

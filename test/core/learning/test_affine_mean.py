@@ -83,3 +83,21 @@ def test_a_fall_is_left_out_of_the_map():
     far = np.flatnonzero(np.linalg.norm(sela._candidates - sela._candidates[[0, 1]][:, None],
                                         axis=2).min(axis=0) > 0.3)
     np.testing.assert_allclose(mu[far], prior[far], atol=1e-6)
+
+
+def test_the_map_stays_off_while_the_prior_predicts_the_steps_as_well():
+    """On a robot the prior mean predicts (within the chaining error), the affine map is not
+    used: gaits far from the steps keep the prior's predictions."""
+    rng = np.random.default_rng(5)
+    m = 200
+    candidates = rng.random((m, 4))
+    prior = _map(rng, m)
+    sela = SELA(candidates, prior, SE2Motion(), goal=[2.0, 0.0],
+                config=SELAConfig(gp_kernel_sigma=0.05, gp_mean_affine=0.5))
+    for i in range(6):
+        sela.tell(i, prior[i] + rng.normal(0, [0.03, 0.03, 0.05]))
+    assert sela._affine_score <= 0.0
+    mu, _ = sela.predict()
+    far = np.flatnonzero(np.linalg.norm(candidates[:, None] - candidates[:6][None],
+                                        axis=2).min(axis=1) > 0.4)
+    np.testing.assert_allclose(mu[far], prior[far], atol=1e-6)
