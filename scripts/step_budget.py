@@ -76,9 +76,9 @@ def classify(steps, goal, miss=0.15, turn=0.35, progress=0.05):
     return out
 
 
-def load(paths):
+def load(paths, seeds=None):
     """Every mission of ``paths``: ``(method, case, damage, goal, steps, success, records)``;
-    runs kept without their steps' records are skipped."""
+    runs kept without their steps' records, or (``seeds``) of other seeds, are skipped."""
     missions = []
     for path in paths:
         text = Path(path).read_text()
@@ -91,7 +91,7 @@ def load(paths):
         for line in text.splitlines():
             if line.strip():
                 r = json.loads(line)
-                if 'steps_detail' in r:
+                if 'steps_detail' in r and (seeds is None or r['seed'] in seeds):
                     missions.append((r['method'], r['case'], r['damage'], tuple(r['goal']),
                                      r['steps'], r['success'], r['steps_detail']))
     return missions
@@ -138,13 +138,16 @@ def main(argv=None):
     parser.add_argument('--turn', type=float, default=0.35, help='rad of a turning step')
     parser.add_argument('--progress', type=float, default=0.05,
                         help='m nearer the goal that a step must bring the robot')
+    parser.add_argument('--seeds', default=None,
+                        help='only the runs of these seeds (comma-separated; default all)')
     parser.add_argument('--markdown', default=None, help='write the table here')
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     sys.path.insert(0, str(ROOT / 'scripts'))
     import compare_priors
 
-    missions = load(args.paths)
+    missions = load(args.paths, None if args.seeds is None
+                    else {int(v) for v in args.seeds.split(',')})
     if not missions:
         parser.error('no run with its steps\' records (compare_priors.py --trace, or a '
                      'summary.json)')
