@@ -67,13 +67,14 @@ def library_like(priors, count, seed=0):
 
 
 def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
-                  caution=None):
+                  caution=None, mean_affine=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
     step is timed with a damage prior in use; ``mixed``: of two of them added up, from a
     standing start first, so the mixture of the tables is in use) and two steps ahead;
-    ``caution``: ``acquisition.caution`` (None: the default). The last item returned says
+    ``caution``: ``acquisition.caution``, ``mean_affine``: ``gp.mean.affine`` (None: the
+    defaults). The last item returned says
     whether caution was on in the steps timed."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.mission import make_sela
@@ -95,6 +96,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
     config = {} if mixed else {'priors.weights.sd': 'none'}
     if caution is not None:
         config['acquisition.caution'] = caution
+    if mean_affine is not None:
+        config['gp.mean.affine'] = mean_affine
     sela = make_sela(archive, config or None, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
@@ -132,6 +135,9 @@ def main():
     parser.add_argument('--caution', type=float, default=None,
                         help='acquisition.caution for the steps on the shipped map (default: '
                              "the config's)")
+    parser.add_argument('--mean-affine', default=None,
+                        help="gp.mean.affine for the steps on the shipped map, a number or "
+                             "none (default: the config's)")
     args = parser.parse_args()
     print('SELA step (ask + tell + fall model, 8-D descriptors, 2 GR dims):')
     for m in (1e3, 1e4, 2e4, 1e5, 1e6):
@@ -141,11 +147,13 @@ def main():
         t, t_min, n = bench_step(int(m), repeats=reps)
         print(f'  {int(m):>8d} candidates, {n - reps + 1:2d}-{n:2d} observations: median '
               f'{1e3 * t:8.2f} ms, min {1e3 * t_min:8.2f} ms')
-    t, t_min, gaits, prior, horizon, cautious = bench_shipped(caution=args.caution)
+    t, t_min, gaits, prior, horizon, cautious = bench_shipped(caution=args.caution,
+                                                                  mean_affine=args.mean_affine)
     print(f'  shipped 8-D map ({gaits} gaits, SE(2), fall GP + support model, damage prior '
           f'in use: {prior}, {horizon} steps ahead), 20-34 observations: median '
           f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms){_on(cautious)}')
-    t, t_min, gaits, prior, horizon, cautious = bench_shipped(mixed=True, caution=args.caution)
+    t, t_min, gaits, prior, horizon, cautious = bench_shipped(mixed=True, caution=args.caution,
+                                                                  mean_affine=args.mean_affine)
     print(f'  the same, the tables mixed on a damage two of them add up to (prior in use: '
           f'{prior}): median '
           f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms){_on(cautious)}')
@@ -154,8 +162,8 @@ def main():
         if not priors:
             continue
         for mixed in (False, True):
-            t, t_min, gaits, prior, horizon, cautious = bench_shipped(mixed=mixed, priors=priors,
-                                                                      caution=args.caution)
+            t, t_min, gaits, prior, horizon, cautious = bench_shipped(
+                mixed=mixed, priors=priors, caution=args.caution, mean_affine=args.mean_affine)
             print(f'  the same with {label}, {"mixed" if mixed else "one table"} (prior in '
                   f'use: {prior}): median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms '
                   f'(target < 20 ms){_on(cautious)}')

@@ -129,15 +129,22 @@ def _evaluate(job):
     return spec, gaits, gr, fallen
 
 
-def build(archive, out, gaits, chunk, workers, only=None, skip=()):
+def build(archive, out, gaits, chunk, workers, only=None, skip=(), specs=None, covering=None):
     """Evaluate every chunk not on disk yet (conditions in ``skip`` not at all: their whole
-    table ships); returns how many were evaluated now."""
+    table ships); returns how many were evaluated now. ``specs``: these damages instead of
+    the library's conditions (for their oracles), on ``gaits`` gaits of which ``covering``
+    cover the map and the rest are the fastest (None: the library's split)."""
     from sela_ros.core.storage import atomic_write
 
-    subset = archive_subset(archive, gaits)
+    if covering is None:
+        subset = archive_subset(archive, gaits)
+    else:
+        gr = archive.generic_reward
+        subset = gait_subset(archive.normalised_descriptors(), gaits,
+                             np.hypot(gr[:, 0], gr[:, 1]), covering=covering)
     settings = archive.simulator_settings
     jobs = []
-    for spec in conditions():
+    for spec in (conditions() if specs is None else specs):
         if (only and spec not in only) or spec in skip:
             continue
         for start in range(0, len(subset), chunk):
@@ -221,6 +228,11 @@ def _evaluated(out, spec):
                  for key in ('gaits', 'generic_reward', 'fallen'))
 
 
+#: Where the outcomes of damages that are no condition of the library are evaluated for
+#: their oracles (``--oracle-only``), when the library's checkpoints hold none.
+ORACLE_OUT = ROOT / 'mapbuild' / 'oracles'
+
+
 def known_outcomes(archive, spec, out=None, gaits=DEFAULT_GAITS, shipped=None,
                    cache_dir=None, restrict=False):
     """What is known of ``spec``'s true outcomes, for an oracle: ``(generic_reward (M, 3),
@@ -253,6 +265,8 @@ def known_outcomes(archive, spec, out=None, gaits=DEFAULT_GAITS, shipped=None,
         source = f'{source} cut to the {int(known.sum())} gaits of the plan'
     else:
         done, done_gr, done_fallen = _evaluated(out or ROOT / 'mapbuild' / 'library', spec)
+        if not len(done) and out is None:
+            done, done_gr, done_fallen = _evaluated(ORACLE_OUT, spec)
         if not len(done):
             return None
         gr, fallen = np.zeros((m, 3)), np.zeros(m, bool)
@@ -333,6 +347,14 @@ def main(argv=None):
     parser.add_argument('--kinds', default=None,
                         help="comma-separated damage kinds (remove, shorten, block, weaken): "
                              "only the conditions made of these")
+    parser.add_argument('--oracle-only', default=None,
+                        help="';'-separated damages that are no condition of the library: "
+                             'evaluate --gaits gaits of each (--covering of them covering the '
+                             'map, the rest the fastest) into mapbuild/oracles, for their '
+                             "oracles (compare_priors.py's oracle reads them)")
+    parser.add_argument('--covering', type=int, default=500,
+                        help='with --oracle-only: gaits that cover the map (default '
+                             '%(default)s)')
     parser.add_argument('--plan', action='store_true', help='print the plan, build nothing')
     parser.add_argument('--assemble', action='store_true',
                         help='infer the gaits not evaluated and write --library')
@@ -347,6 +369,13 @@ def main(argv=None):
     args = parser.parse_args(argv)
     path = resolve_archive_path(args.archive)
     archive = load_archive(path)
+    if args.oracle_only:
+        from sim_bridge.damage import parse_damage
+
+        specs = [parse_damage(s).canonical() for s in args.oracle_only.split(';')]
+        build(archive, ORACLE_OUT, args.gaits, args.chunk, args.workers, specs=specs,
+              covering=args.covering)
+        return
     shipped = resolve_priors('auto', path, archive.params)
     skip = tuple(shipped.names) if shipped is not None else ()
     names, evaluations, hours, megabytes = plan(len(archive), args.gaits, skip)

@@ -75,15 +75,30 @@ UNFORESEEN = tuple((f'remove:{leg}/own-left-out', f'remove:{leg}', True)
                        'remove:rear_right,shorten:front_left:0.6'))
 FORESEEN = tuple((f'remove:{leg}', f'remove:{leg}', False)
                  for leg in ('middle_right', 'front_left', 'rear_right'))
+#: Deviations no table holds and the map was not built on: the ground's friction and a payload,
+#: alone and with a leg removed or shortened (their oracles: build_library.py --oracle-only).
+DEVIATIONS = tuple((base + dev, base + dev, False)
+                   for base in ('', 'remove:rear_left,', 'shorten:front_right:0.5,')
+                   for dev in ('friction:0.5', 'friction:0.3', 'payload:1.0@0.08,0.05'))
 GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
 METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.sd': 1.0},
            'none': None, 'library-select': {'priors.weights.sd': 'none'},
            'library': {'priors.weights.sd': 1.0}, 'library-own': {'priors.weights.sd': 1.0},
            'oracle': None, 'oracle-restricted': None, 'bound-own': None, 'bound-fit': None,
            'bound-fit-signed': None,
-           'caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15},
-           **{f'caution-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': v}
-              for v in (0.1, 0.2, 0.3)}}
+           'caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                       'gp.mean.affine': 'none'},
+           **{f'caution-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': v,
+                               'gp.mean.affine': 'none'}
+              for v in (0.1, 0.2, 0.3)},
+           **{f'affine-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                              'gp.mean.affine': v} for v in (0.25, 0.5, 1.0)},
+           **{f'affine-{v}-nocaution': {'priors.weights.sd': 1.0, 'gp.mean.affine': v}
+              for v in (0.5,)}}
+#: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
+#: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
+#: (commit "learning: an affine map of the prior mean learnt from the steps; ...").
+REPORTED_ONLY = ('affine-0.5-ungated',)
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -213,6 +228,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
               weights_sd=settings.get('priors.weights.sd'),
               caution=settings.get('acquisition.caution', 'none'), prior_mean=prior_mean,
+              mean_affine=settings.get('gp.mean.affine', 'none'), trace=args.trace,
               **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (
@@ -221,7 +237,8 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
             'method': method, 'seed': seed, 'success': out['success'], 'steps': out['steps'],
             'falls': out['falls'], 'wall_seconds': round(out['wall_seconds'], 2),
             'behaviors': out['behaviors'],
-            **({'left_out': left_out} if method in LIBRARY_METHODS else {})}
+            **({'left_out': left_out} if method in LIBRARY_METHODS else {}),
+            **({'steps_detail': out['steps_detail']} if 'steps_detail' in out else {})}
 
 
 _ORACLE_TABLES = {}
@@ -610,7 +627,8 @@ def main(argv=None):
     parser.add_argument('--methods', default='select,mixture',
                         help=f'comma-separated, of {sorted(METHODS)} (default %(default)s)')
     parser.add_argument('--cases', default='all',
-                        help="'all', 'unforeseen', 'foreseen', 'library' (every condition of "
+                        help="'all', 'unforeseen', 'foreseen', 'deviations', 'library' (every "
+                             "condition of "
                              "--library, or of the library's plan, as a damage nobody "
                              "foresaw, then the unforeseen cases it does not hold) or case "
                              'names joined by ";"')
@@ -629,6 +647,9 @@ def main(argv=None):
     parser.add_argument('--library', default=None,
                         help='a damage library (scripts/build_library.py --assemble) for the '
                              'methods ' + ', '.join(LIBRARY_METHODS + BOUND_METHODS))
+    parser.add_argument('--trace', action='store_true',
+                        help="keep each SELA step's record in --out (scripts/step_budget.py "
+                             'reads them)')
     parser.add_argument('--report-only', action='store_true',
                         help='run nothing: print the tables of the runs in --out')
     args = parser.parse_args(argv)
@@ -637,18 +658,20 @@ def main(argv=None):
     from sela_ros.core.storage import default_archive_path, load_archive
 
     methods = [m for m in args.methods.split(',') if m]
-    unknown = set(methods) - set(METHODS)
+    unknown = set(methods) - set(METHODS) - (set(REPORTED_ONLY) if args.report_only else set())
     if unknown:
         parser.error(f'unknown methods {sorted(unknown)}; expected some of {sorted(METHODS)}')
     if args.cases == 'library':
         cases = library_cases(args.library)
     elif args.cases == 'all':
         cases = UNFORESEEN + FORESEEN
+    elif args.cases == 'deviations':
+        cases = DEVIATIONS
     elif args.cases in ('unforeseen', 'foreseen'):
         cases = UNFORESEEN if args.cases == 'unforeseen' else FORESEEN
     else:
         wanted = args.cases.split(';')
-        known = UNFORESEEN + FORESEEN + library_cases(args.library)
+        known = UNFORESEEN + FORESEEN + DEVIATIONS + library_cases(args.library)
         by_label = {}
         for c in known:
             by_label.setdefault(c[0], c)

@@ -147,6 +147,9 @@ class RunResult:
     goal_steps: list = dataclasses.field(default_factory=list)  # task steps when each goal
     # of the mission was reached
     behaviors: list = dataclasses.field(default_factory=list)  # archive index of each step
+    # SELA: each step's record (sela_ros.core.mission.StepRecord), what a mission's summary
+    # keeps (scripts/step_budget.py reads either)
+    records: list = dataclasses.field(default_factory=list)
 
 
 def _reached(env, problem) -> bool:
@@ -220,7 +223,7 @@ def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
                           problem.stepper, max_steps=problem.max_steps),
                       detect=problem.detect)
     return RunResult(run.success, run.steps, 0, run.goal_steps,
-                     [r.behavior_index for r in run.logic.records])
+                     [r.behavior_index for r in run.logic.records], list(run.logic.records))
 
 
 def _learning_step(env, problem, sela, index):

@@ -14,6 +14,12 @@ PARAMETERS = (
          "archive's (0.1, the paper's, for a 2-D map; 0.3 for the 8-D map)", low=0.0,
          high=100.0, kind='double', word=AUTO, read_only=True),
     Spec('gp.noise', 0.001, 'GP noise variance', low=0.0, high=100.0, read_only=True),
+    Spec('gp.mean.affine', NONE if SELAConfig.gp_mean_affine is None
+         else SELAConfig.gp_mean_affine, 'prior standard deviation of the '
+         'scale and rotation of an affine map of the prior mean learnt from the steps (what '
+         "the damage does to every gait), centred on the identity; none = the prior mean as "
+         "it is (the paper's)", low=0.0, high=100.0, kind='double', word=NONE,
+         read_only=True),
     Spec('acquisition.ucb.alpha', 0.05, 'UCB exploration weight', low=0.0, high=100.0,
          read_only=True),
     Spec('acquisition.caution', SELAConfig.acquisition_caution, 'once untried gaits land '
@@ -100,7 +106,8 @@ PARAMETERS = (
          "sim.solver_iterations the archive must match ('' on a real robot: no check)",
          read_only=True),
 )
-SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'acquisition.ucb.alpha', 'acquisition.caution',
+SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'gp.mean.affine', 'acquisition.ucb.alpha',
+             'acquisition.caution',
              'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
              'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',

@@ -174,3 +174,22 @@ def test_the_oracle_knows_a_whole_table_where_there_is_one_else_the_gaits_evalua
     assert np.flatnonzero(falls).tolist() == [subset[3]] and '30 gaits' in source
     assert lib.known_outcomes(archive, 'remove:middle_left', tmp_path, 100, shipped,
                               cache) is None
+
+
+def test_a_damage_outside_the_library_is_evaluated_for_its_oracle(lib, tmp_path, monkeypatch):
+    """``--oracle-only``: the gaits of a damage no condition holds (the ground's friction)
+    are simulated, covering the map then the fastest, and the oracle reads them."""
+    from sela_ros.core.storage import default_archive_path, load_archive
+
+    archive = load_archive(default_archive_path())
+    monkeypatch.setattr(lib, 'ORACLE_OUT', tmp_path)
+    assert lib.known_outcomes(archive, 'friction:0.3') is None
+    assert lib.build(archive, tmp_path, 3, 2, 1, specs=['friction:0.3'], covering=2) == 2
+    gr, fallen, known, source = lib.known_outcomes(archive, 'friction:0.3')
+    speed = np.hypot(archive.generic_reward[:, 0], archive.generic_reward[:, 1])
+    chosen = np.flatnonzero(known)
+    assert len(chosen) == 3 and '3 gaits' in source
+    # Two cover the map; the third is the fastest gait of the intact robot.
+    assert int(np.argmax(speed)) in chosen
+    assert np.abs(gr[chosen]).sum() > 0 and not np.abs(gr[~known]).any()
+    assert lib.build(archive, tmp_path, 3, 2, 1, specs=['friction:0.3'], covering=2) == 0

@@ -13,7 +13,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sela_ros.core.detection import change_evidence
-from sela_ros.core.learning import acquisition, damage_priors, fall_risk, gp, prior_mixture
+from sela_ros.core.learning import (
+    acquisition,
+    affine_mean,
+    damage_priors,
+    fall_risk,
+    gp,
+    prior_mixture,
+)
 from sela_ros.core.learning.sela_config import SELAConfig
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 
@@ -176,6 +183,10 @@ class SELA:
         # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
         # the mixture of the tables.
         self._prior_scores = {'table': 0.0, 'mixture': 0.0}
+        # How much better the affine map of the prior mean (gp.mean.affine) predicted every
+        # step before it was learnt than the prior mean as it is (log-likelihood ratio): the
+        # map is used only while it predicts better.
+        self._affine_score = 0.0
         self._mixture_fit = None
         # Squared planar error of each untried gait's predicted landing, as it was before the
         # gait was learnt (acquisition.caution: how wrong the prior is for this robot).
@@ -336,21 +347,53 @@ class SELA:
         its support prior, and its chained runs if it reproduced the robot's standing
         starts: those of another damage mislead), ``()`` for the intact map."""
         mu_t, var = self._gp.query_columns()
+        prior = self._effective_prior(selection)
         if selection.mixture is not None:
             # The mixture's falls set the fall model's prior as a table's do; no chained runs:
             # those of the damages mixed mislead on another robot (docs/notebook.md).
             rates = selection.mixture.fall_rates(self.priors.fallen)
-            return (self._gp.mean_columns_with_prior(self._prior_mean(selection)), var,
+            return (self._gp.mean_columns_with_prior(prior), var,
                     (rates, self._fall.table_support(rates), None))
         if selection.index is None:
-            return mu_t, var, ()
-        table = self._prior_mean(selection)
+            return (mu_t if prior is None else self._gp.mean_columns_with_prior(prior)), var, ()
         fallen = self.priors.fallen[selection.index]
         if selection.index not in self._support:
             self._support[selection.index] = self._fall.table_support(fallen)
-        return (self._gp.mean_columns_with_prior(table), var,
+        return (self._gp.mean_columns_with_prior(prior), var,
                 (fallen.astype(float), self._support[selection.index],
                  self.priors.chained(selection.index) if selection.reproduced else None))
+
+    def _effective_prior(self, selection):
+        """The ``(M, k)`` prior mean the GPs' residuals are taken from: ``selection``'s
+        (:meth:`_prior_mean`), mapped by the affine map learnt from the steps
+        (``gp.mean.affine``, :mod:`~sela_ros.core.learning.affine_mean`); None: the intact
+        map as it is (the GPs' own)."""
+        table = self._prior_mean(selection)
+        base = self._prior if table is None else table
+        weights = self._affine_weights(base)
+        return table if weights is None else affine_mean.apply_affine(weights, base)
+
+    def _affine_weights(self, base):
+        """The affine map of the prior mean ``base`` in use (:meth:`_fit_affine`), or None:
+        off, or it has not predicted the steps better than the prior mean as it is."""
+        if self._affine_score <= 0.0:
+            return None
+        return self._fit_affine(base)
+
+    def _fit_affine(self, base):
+        """The affine map (:func:`~sela_ros.core.learning.affine_mean.fit_affine`) of the
+        prior mean ``base`` learnt from the steps that stayed up, or None (off, or no such
+        step)."""
+        sd = self.config.gp_mean_affine
+        if sd is None or not self._gp.num_samples:
+            return None
+        idx, grs = self.observations
+        fall_idx, fallen = self._fall.observations
+        # A step that ended on the ground says nothing of how this robot walks.
+        keep = ~np.isin(idx, fall_idx[fallen]) if fallen.any() else np.ones(len(idx), bool)
+        if not keep.any():
+            return None
+        return affine_mean.fit_affine(base[idx[keep]], grs[keep], sd)
 
     def _prior_mean(self, selection):
         """The ``(M, k)`` prior mean ``selection`` stands for: the tables mixed, one table,
@@ -513,6 +556,8 @@ class SELA:
         if self.priors is not None and len(self.priors) and self._gp.num_samples \
                 and self.config.priors_weights_sd is not None and valid:
             self._score_priors(int(index), observed, bool(standing_start))
+        if valid and not hedged and self.config.gp_mean_affine is not None:
+            self._score_affine(int(index), observed, bool(standing_start))
         self._gp.add_sample(index, observed_gr)
         self._standing.append(bool(standing_start))
 
@@ -522,13 +567,34 @@ class SELA:
         mu_t, var = self._gp.query_columns()
         if var[index] <= acquisition.UNTRIED_VARIANCE:
             return
-        prior = self._prior_mean(self.select_prior())
-        if prior is None:
+        table = self._prior_mean(self.select_prior())
+        base = self._prior if table is None else table
+        weights = self._affine_weights(base)
+        if table is None and weights is None:
             predicted = mu_t[:, index]
         else:
             idx, _ = self.observations
-            predicted = self._gp.mean_at_with_prior(index, prior[idx], prior[index])
+            rows = base[np.append(idx, index)]
+            if weights is not None:
+                rows = affine_mean.apply_affine(weights, rows)
+            predicted = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
         self._surprises.append(float(np.sum((observed[:2] - predicted[:2]) ** 2)))
+
+    def _score_affine(self, index, observed, standing) -> None:
+        """Add how much better the affine map fitted to the steps before predicted this one
+        than the prior mean as it is (log-likelihoods of the damage priors' error model)."""
+        table = self._prior_mean(self.select_prior())
+        base = self._prior if table is None else table
+        weights = self._fit_affine(base)
+        if weights is None:
+            return
+        idx, _ = self.observations
+        rows = base[np.append(idx, index)]
+        mapped = affine_mean.apply_affine(weights, rows)
+        plain = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
+        fitted = self._gp.mean_at_with_prior(index, mapped[:-1], mapped[-1])
+        self._affine_score += prior_mixture.step_log_likelihood(observed - fitted, standing) \
+            - prior_mixture.step_log_likelihood(observed - plain, standing)
 
     def _landing_variance(self, var):
         """Per gait, the variance of its landing if caution is on

@@ -16,7 +16,13 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from sela_ros.core.learning import acquisition, damage_priors, fall_risk, gp, prior_mixture
+from sela_ros.core.learning import (
+    acquisition,
+    damage_priors,
+    fall_risk,
+    gp,
+    prior_mixture,
+)
 from sela_ros.core.validation import check_number
 
 
@@ -31,6 +37,10 @@ class SELAConfig:
     gp_kernel_sigma: float = gp.DEFAULT_SIGMA
     gp_kernel_variance: float = gp.DEFAULT_VARIANCE
     gp_noise: float = gp.DEFAULT_NOISE
+    # Prior standard deviation of the scale and rotation terms of an affine map of the prior
+    # mean learnt from the steps (sela_ros.core.learning.affine_mean: what the damage does to
+    # every gait), centred on the identity; None (none): the prior mean as it is (the paper's).
+    gp_mean_affine: float | None = None
     acquisition_ucb_alpha: float = acquisition.DEFAULT_ALPHA
     # m: once untried gaits have landed this far from their predictions (rms per axis, learnt
     # from the steps: acquisition.learnt_error), each gait is scored by its expected distance
@@ -107,7 +117,7 @@ AUTO = 'auto'
 NONE = 'none'
 #: ``{name: word}`` of the parameters a SELAConfig may hold as None.
 WORDS = {'fall.kernel.sigma': AUTO, 'priors.max.misfit': NONE, 'priors.weights.sd': NONE,
-         'acquisition.caution': NONE}
+         'acquisition.caution': NONE, 'gp.mean.affine': NONE}
 #: The parameters whose ``auto`` is the archive's (:func:`sela_ros.core.mission.archive_config`).
 ARCHIVE_AUTO = ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon')
 

@@ -45,6 +45,7 @@ def test_config_dotted_names():
     assert c.gp_kernel_sigma == 0.2 and c.acquisition_ucb_alpha == 0.1
     assert c.goal_eps == 0.1 and c.gp_noise == 0.001
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
+                                'gp.mean.affine',
                                 'acquisition.ucb.alpha', 'acquisition.caution',
                                 'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
@@ -76,7 +77,7 @@ def test_auto_and_none_are_words_not_numbers():
     assert SELAConfig.from_dict({'priors.weights.sd': 0.0}).priors_weights_sd is None
     # 0 is no kernel length, no horizon, no cap: the words say what 0 cannot.
     for field in ('gp_kernel_sigma', 'fall_kernel_sigma', 'priors_max_misfit',
-                  'priors_weights_sd', 'acquisition_caution'):
+                  'priors_weights_sd', 'acquisition_caution', 'gp_mean_affine'):
         with pytest.raises(ValueError, match='must be'):
             SELAConfig(**{field: 0.0})
     with pytest.raises(ValueError, match='fall.kernel.sigma'):
@@ -330,7 +331,7 @@ def _surprised(caution, goal=(2.0, 0.0)):
     goal is far east: the waypoint 0.6 m east."""
     sela = SELA(np.linspace(0, 1, 5)[:, None], np.tile([0.5, 0.0], (5, 1)), PointMotion(),
                 goal=goal, config={'gp.kernel.sigma': 0.05, 'acquisition.ucb.alpha': 0.0,
-                                   'acquisition.caution': caution})
+                                   'acquisition.caution': caution, 'gp.mean.affine': 'none'})
     for index, dx in ((4, 0.1), (0, 0.35), (1, 0.1)):
         sela.tell(index, [dx, 0.0])
     return sela
@@ -357,7 +358,8 @@ def test_on_the_step_to_the_goal_caution_never_stays_put():
 
     sela = SELA(np.linspace(0, 1, 5)[:, None], np.tile([0.5, 0.0], (5, 1)), PointMotion(),
                 goal=(0.32, 0.0), config={'gp.kernel.sigma': 0.05, 'acquisition.ucb.alpha': 0.0,
-                                          'acquisition.caution': 0.15})
+                                          'acquisition.caution': 0.15,
+                                          'gp.mean.affine': 'none'})
     sela.tell(0, [0.0, 0.0])  # stays put: its landing 0.32 m from the goal, surely
     mu, sigma = sela.predict()
     error = learnt_error(sela.state_dict()['surprises'])
