@@ -62,7 +62,7 @@ class A1Description(RobotDescription):
     period = 1.0
     fall_height = 0.12
     reach = 0.6
-    default_damage = 'shorten:front_left'
+    default_damage = 'block:rear_right.calf'
     archive = 'a1'
 
     def joint_key(self, joint_name: str) -> tuple[str, str]:

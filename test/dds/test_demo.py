@@ -97,3 +97,19 @@ def test_demo_with_a_goal_off_the_map_fails_with_the_reason(tmp_path, ros_env):
     assert proc.returncode == 1, proc.stderr
     assert 'off the map' in proc.stderr and 'Traceback' not in proc.stderr
     assert json.loads((tmp_path / 'summary.json').read_text())['steps'] == 0
+
+
+def test_the_a1_demo_reaches_its_goal_over_dds(tmp_path, ros_env):
+    out = tmp_path / 'demo_a1'
+    proc = subprocess.run(
+        [str(executable('sela-demo')), '--robot', 'a1', '--damage', 'block:rear_right.calf',
+         '--goal', '1.0,1.0', '--out', str(out), '--timeout', '400'],
+        env=ros_env, capture_output=True, text=True, timeout=480)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert proc.stdout.startswith("sela-demo: a1, damage 'block:rear_right.calf=-1.6'")
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['success'] is True and summary['final_distance_to_goal'] < 0.2
+    # The A1's map served by the adapter: behaviour indices within its 429 gaits.
+    from sela_ros.core.storage import load_archive, resolve_archive_path
+
+    assert max(summary['behaviors']) < len(load_archive(resolve_archive_path('a1')))

@@ -49,3 +49,20 @@ def test_a_toy_map_is_not_resumed_as_another_robot_s(tmp_path, capsys):
     with pytest.raises(SystemExit):
         build_archive.main([*args, '--evaluations', '16', '--out', str(out), '--resume'])
     assert 'simulator settings' in capsys.readouterr().err
+
+
+def test_the_shipped_a1_map_is_the_a1_s_and_its_gaits_do_what_it_says():
+    from sela_ros.core.storage import resolve_archive_path
+
+    archive = load_archive(resolve_archive_path('a1'))
+    a1 = get_robot('a1')
+    assert robot_of(archive.metadata) == 'a1' == a1.archive
+    assert archive.params.shape == (len(archive), a1.n_params)
+    assert archive.descriptors.shape[1] == 2 + len(a1.legs)
+    settings = archive.simulator_settings
+    for i in np.random.default_rng(0).choice(len(archive), 3, replace=False):
+        outcome = evaluate_gait(archive.params[i], 'intact', dt=settings['dt'],
+                                gait_duration=settings['gait_duration'],
+                                solver_iterations=settings['solver_iterations'], robot='a1')
+        np.testing.assert_allclose(outcome.generic_reward, archive.generic_reward[i],
+                                   atol=1e-6)

@@ -402,9 +402,11 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
 
 
 #: The archives shipped inside the package (``sela_ros/data``), by short name: the default is
-#: the paper's 8-D map (final x, y + six duty factors); ``2d`` is the first, 2-D map (final
-#: x, y), kept to compare with (docs/archive.md).
-SHIPPED_ARCHIVES = {'8d': 'hexapod_archive.npz', '2d': 'hexapod_archive_2d.npz'}
+#: the hexapod's, the paper's 8-D map (final x, y + six duty factors); ``2d`` is its first, 2-D
+#: map (final x, y), kept to compare with (docs/archive.md); ``a1`` is the Unitree A1's
+#: (docs/robots.md).
+SHIPPED_ARCHIVES = {'8d': 'hexapod_archive.npz', '2d': 'hexapod_archive_2d.npz',
+                    'a1': 'a1_archive.npz'}
 
 
 def default_archive_path() -> Path:
@@ -413,8 +415,8 @@ def default_archive_path() -> Path:
 
 
 def resolve_archive_path(value: str) -> str:
-    """An ``archive`` parameter's value as a path: '' is the default shipped archive, ``8d``
-    and ``2d`` the shipped ones by name, anything else a path as given."""
+    """An ``archive`` parameter's value as a path: '' is the default shipped archive, ``8d``,
+    ``2d`` and ``a1`` the shipped ones by name, anything else a path as given."""
     value = (value or '').strip() or '8d'
     return str(shipped_archive_path(value)) if value in SHIPPED_ARCHIVES else value
 

@@ -288,6 +288,8 @@ def test_shipped_archives_by_name():
     assert len(eight) >= 10_000 and eight.metadata['archive_kind'] == 'cvt'
     assert eight.stability is not None and two.stability is None
     assert resolve_archive_path('/some/map.npz') == '/some/map.npz'
-    assert set(SHIPPED_ARCHIVES) == {'8d', '2d'}
+    assert set(SHIPPED_ARCHIVES) == {'8d', '2d', 'a1'}
+    a1 = load_archive(resolve_archive_path('a1'))
+    assert a1.metadata['robot'] == 'a1' and a1.descriptors.shape[1] == 6
     with pytest.raises(ArchiveError, match='shipped'):
         shipped_archive_path('3d')
