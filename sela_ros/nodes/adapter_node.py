@@ -11,6 +11,7 @@ the mission stands go to ``state_file`` after every step and come back at start-
 (``resume``); archive and state file handling is in :mod:`sela_ros.nodes.adapter_support`.
 """
 import math
+import time
 from collections import deque
 
 from nav_msgs.srv import GetPlan
@@ -38,6 +39,9 @@ from sela_ros.nodes.sim_check import SimulatorCheck
 
 TICK_PERIOD = 0.25  # s (wall): time-outs only, steps advance on events
 RESULT_PERIOD = 1.0  # s (wall): a mission's result is said again this often while idle
+# s (wall) a lost planner has to come back (restarted) before the mission waiting on its plan
+# ends: a restart is not the end of a mission, a dead planner ends it within seconds.
+PLANNER_RETURN = 5.0
 
 
 class SelaAdapter(Node):
@@ -140,7 +144,9 @@ class SelaAdapter(Node):
     def tick(self):
         self.sim_check.poll()
         self.liveness.poll()
-        if self._deferred_plan is not None and self.plan_client.service_is_ready():
+        if self._deferred_plan is not None and self.liveness.lost(ifc.PLANNER):
+            self._end_if_planner_gone()
+        elif self._deferred_plan is not None and self.plan_client.service_is_ready():
             command, self._deferred_plan = self._deferred_plan, None
             self._request_plan(command)
         self.feed(io.Tick())
@@ -154,12 +160,19 @@ class SelaAdapter(Node):
         self.get_logger().error(self.liveness.watch.why(name))
         self._say_liveness(name)
         if name == ifc.PLANNER:
-            # The plan asked (or about to be) can never come: the mission ends now, with
-            # the reason, instead of after its plan requests' time-outs.
-            for command in (self._asked_plan, self._deferred_plan):
-                if command is not None:
-                    self.feed(self._planner_lost(command))
-            self._asked_plan = self._deferred_plan = None
+            # The plan asked can never come from the lost planner: it is asked again of a
+            # restarted one, or the mission ends once none came back in PLANNER_RETURN s,
+            # instead of after its plan requests' time-outs.
+            if self._asked_plan is not None and self._deferred_plan is None:
+                self._deferred_plan = self._asked_plan
+            self._asked_plan = None
+
+    def _end_if_planner_gone(self):
+        lost_at = self.liveness.watch.lost.get(ifc.PLANNER)
+        if (self._deferred_plan is not None and lost_at is not None
+                and time.monotonic() - lost_at >= PLANNER_RETURN):
+            command, self._deferred_plan = self._deferred_plan, None
+            self.feed(self._planner_lost(command))
 
     def _adapt_without_detector(self):
         """No damage can be detected while the detector is lost: learn from every outcome,
@@ -360,11 +373,9 @@ class SelaAdapter(Node):
             self.markers.decision(c)
 
     def _request_plan(self, command):
-        if self.liveness.lost(ifc.PLANNER):
-            self.feed(self._planner_lost(command))
-            return
-        if not self.plan_client.service_is_ready():
+        if self.liveness.lost(ifc.PLANNER) or not self.plan_client.service_is_ready():
             self._deferred_plan = command  # sent by the timer once the planner is up
+            self._end_if_planner_gone()
             return
         request = GetPlan.Request(
             start=conv.pose_stamped(command.start[:2], command.start[2], frame_id=self.frame_id),

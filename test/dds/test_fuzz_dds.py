@@ -131,8 +131,10 @@ def _parameter_value(draw):
 
 
 def _declared(config):
-    """Every node's parameter names, from the config file (they are all there)."""
-    return {_node(key): sorted(section['ros__parameters']) for key, section in config.items()}
+    """Every running node's parameter names, from the config file (they are all there; the
+    gait_executor, which replaces sim_bridge on a robot, is not started here)."""
+    return {_node(key): sorted(section['ros__parameters']) for key, section in config.items()
+            if _node(key) in ifc.NODES}
 
 
 def _node(key):
@@ -189,6 +191,8 @@ def _set_back(client, config):
 
     for key, section in config.items():
         node = _node(key)
+        if node not in ifc.NODES:
+            continue
         values = [RclpyParameter(k, value=v).to_parameter_msg()
                   for k, v in section['ros__parameters'].items() if k != 'use_sim_time']
         cli = client.node.create_client(SetParameters, f'/{node}/set_parameters')

@@ -32,12 +32,12 @@ def test_an_outcome_whose_reward_its_poses_contradict_is_refused_over_dds():
         forged = []
 
         def on_command(msg):
-            # Answer the adapter's first command before the simulator does: 1.9 m forward,
-            # from a pose that did not move.
+            # Answer the adapter's first command before the simulator does: 1.0 m forward
+            # (a distance one gait could cover on this map), from a pose that did not move.
             _, behavior_id = conv.behavior_from_msg(msg)
             if not forged and behavior_id is not None:
                 forger.publish(conv.outcome_to_msg(conv.BehaviorOutcome(
-                    behavior_id, np.array([1.9, 0.0, 0.0]), np.zeros(3), np.zeros(3))))
+                    behavior_id, np.array([1.0, 0.0, 0.0]), np.zeros(3), np.zeros(3))))
                 forged.append(behavior_id)
         ifc.subscription(node, ifc.BEHAVIOR, on_command)
         mission.wait_until_ready(timeout=120)
@@ -54,7 +54,7 @@ def test_an_outcome_whose_reward_its_poses_contradict_is_refused_over_dds():
         client.spin_until(lambda: len(_learnt(nodes.state_file)) >= 1, 120,
                           'the real outcome learnt and saved')
         learnt = np.array(_learnt(nodes.state_file))
-        assert np.all(np.abs(learnt[:, 0]) < 1.0), learnt
+        assert np.all(np.abs(learnt[:, 0]) < 0.9), learnt
         assert all(nodes.alive().values()), nodes.logs()
     finally:
         client.close()

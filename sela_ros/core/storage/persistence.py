@@ -92,7 +92,8 @@ def path_problem(path):
     or None (a regular file, or nothing yet)."""
     try:
         mode = os.stat(path).st_mode
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
+        # Nothing there: a folder that cannot hold it fails each save, which says so.
         return None
     except OSError as exc:
         return f'{path} cannot be looked at: {exc}'
