@@ -32,14 +32,15 @@ SERVO_TIME_CONSTANT = math.pi * 0.015
 CONTROLLER_VERSION = 'cully2015-v1'
 
 
-def validate_params(params) -> np.ndarray:
-    """Return ``params`` as a float64 array of shape (36,), or raise ``ValueError``."""
+def validate_params(params, n=N_PARAMS) -> np.ndarray:
+    """Return ``params`` as a float64 array of shape ``(n,)`` in [0, 1], or raise ``ValueError``
+    (``n``: the robot's number of gait parameters, the hexapod's 36 by default)."""
     try:
         p = np.asarray(params, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f'gait parameters must be 36 numbers in [0, 1]: {exc}') from None
-    if p.shape != (N_PARAMS,):
-        raise ValueError(f'gait parameters must have shape ({N_PARAMS},), got {p.shape}')
+        raise ValueError(f'gait parameters must be {n} numbers in [0, 1]: {exc}') from None
+    if p.shape != (n,):
+        raise ValueError(f'gait parameters must have shape ({n},), got {p.shape}')
     if not np.all(np.isfinite(p)):
         bad = np.flatnonzero(~np.isfinite(p)).tolist()
         raise ValueError(f'gait parameters must be finite; non-finite at indices {bad}')

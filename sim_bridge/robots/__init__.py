@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from sim_bridge import controller
 from sim_bridge.damage import DamageSpec, Vocabulary, parse_damage
 
 #: The robots the stack knows by name (``robot`` parameter, ``--robot`` options).
@@ -120,21 +121,7 @@ class RobotDescription:
 
     def validate_params(self, params) -> np.ndarray:
         """``params`` as a float64 array of shape ``(n_params,)`` in [0, 1], or ValueError."""
-        n = self.n_params
-        try:
-            p = np.asarray(params, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f'gait parameters must be {n} numbers in [0, 1]: {exc}') from None
-        if p.shape != (n,):
-            raise ValueError(f'gait parameters must have shape ({n},), got {p.shape}')
-        if not np.all(np.isfinite(p)):
-            bad = np.flatnonzero(~np.isfinite(p)).tolist()
-            raise ValueError(f'gait parameters must be finite; non-finite at indices {bad}')
-        if np.any((p < 0.0) | (p > 1.0)):
-            bad = np.flatnonzero((p < 0.0) | (p > 1.0)).tolist()
-            raise ValueError(f'gait parameters must lie in [0, 1]; out of range at indices '
-                             f'{bad}')
-        return p
+        return controller.validate_params(params, self.n_params)
 
     def target_table(self, params) -> np.ndarray:
         """``(n_samples, len(joint_names))`` joint targets of one period of gait ``params``."""

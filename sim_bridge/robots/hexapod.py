@@ -78,9 +78,6 @@ class HexapodDescription(RobotDescription):
         finally:
             os.unlink(path)
 
-    def validate_params(self, params) -> np.ndarray:
-        return controller.validate_params(params)
-
     def target_table(self, params) -> np.ndarray:
         return controller.target_table(params)
 
