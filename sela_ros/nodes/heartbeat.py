@@ -23,6 +23,10 @@ from sela_ros.nodes.conversions import diagnostic_array, diagnostic_status
 from sela_ros.nodes.guard import report_exception
 
 SUFFIX = ifc.HEARTBEAT_SUFFIX
+#: s: a writer matched this long without asserting its liveliness is taken for dead. A live
+#: one asserts every two thirds of its lease (rmw_fastrtps's announcement period); the rest
+#: is the events' delivery under load.
+UNASSERTED = ifc.LIVELINESS_LEASE + 2.0
 
 
 # Each node's liveliness writer, held for the node's life.
@@ -61,16 +65,26 @@ class LivenessWatch:
     restarted node); a node never seen alive is *silent* once ``grace`` seconds have
     passed since the watch started (start-up is not an alarm).
 
+    A writer is asserted first a little after it is matched (DDS asserts a live writer
+    every two thirds of its lease): one killed in between never gets an event, alive or
+    lost. So a writer matched (:meth:`matched`) and still unasserted ``unasserted``
+    seconds later makes its node lost too; an assertion that comes after all makes it
+    alive again.
+
     Whose a writer is comes from the graph: the caller passes ``writers``, the ids of the
     writers on the node's topic that belong to a node of that name (None: unknown, every
     alive writer counts). A writer of someone else's, or one of the node's that was there
     when it was lost, never makes it alive: only the watched node, started again, can.
     """
 
-    def __init__(self, nodes, grace, now=None):
+    def __init__(self, nodes, grace, now=None, unasserted=UNASSERTED):
         self.started = time.monotonic() if now is None else now
         self.grace = float(grace)
+        self.unasserted = float(unasserted)
         self.alive = {n: 0 for n in nodes}  # writers alive, as the latest event said
+        self.not_alive = {n: 0 for n in nodes}  # matched writers not alive, as it said
+        self.unasserted_since = {}  # node -> since when a matched writer has no liveliness
+        self.never_asserted = set()  # nodes lost for a writer that never asserted
         self.seen = set()  # nodes seen alive at least once
         self.lost = {}  # node -> when it was lost
         self.silent = set()
@@ -82,12 +96,19 @@ class LivenessWatch:
         self.grace = float(seconds)
 
     def changed(self, node, alive_count, alive_change, not_alive_change=0, now=None,
-                writers=None):
+                writers=None, not_alive_count=None):
         """A liveliness-changed event on ``node``'s topic (its alive count, and the changes
-        of the alive and not-alive counts since the last event; ``writers``: see the class);
-        returns 'lost', 'alive' or None (nothing to report)."""
+        of the alive and not-alive counts since the last event; ``writers``: see the class;
+        ``not_alive_count``: its matched writers not alive, for :meth:`matched`); returns
+        'lost', 'alive' or None (nothing to report)."""
         now = time.monotonic() if now is None else now
         before, self.alive[node] = self.alive[node], int(alive_count)
+        if not_alive_count is not None:
+            self.not_alive[node] = int(not_alive_count)
+        if alive_change > 0 and node in self.never_asserted:
+            # The writer taken for dead asserted after all: it may make the node alive.
+            self.never_asserted.discard(node)
+            self.lost.pop(node, None)
         # Changes are summed between two reads: a writer lost while another appeared shows
         # in the not-alive count, or in an alive count lower than before.
         if alive_change < 0 or not_alive_change > 0 or alive_count < before:
@@ -95,11 +116,27 @@ class LivenessWatch:
             # node not yet gone from the graph, or someone else's) is still alive.
             if node not in self.lost:
                 self.dead[node] |= self.own[node]
+            self.never_asserted.discard(node)
             self.lost[node] = now
             return 'lost'
         if alive_change > 0:
             return self.confirm(node, writers)
         return None
+
+    def matched(self, node, count, now=None):
+        """``node``'s topic has ``count`` writers matched (the middleware's count, polled):
+        'lost' once one of them has stayed without an assertion ``unasserted`` seconds (see
+        the class), else None."""
+        now = time.monotonic() if now is None else now
+        if int(count) <= self.alive[node] + self.not_alive[node]:
+            self.unasserted_since.pop(node, None)
+            return None
+        since = self.unasserted_since.setdefault(node, now)
+        if now - since < self.unasserted or node in self.lost:
+            return None
+        self.never_asserted.add(node)
+        self.lost[node] = now
+        return 'lost'
 
     def waiting(self):
         """Nodes with a writer alive that is not yet known to be their own (the graph says
@@ -133,6 +170,10 @@ class LivenessWatch:
     def why(self, node, now=None):
         """Why ``node`` is silent, in words."""
         now = time.monotonic() if now is None else now
+        if node in self.never_asserted:
+            return (f'{node} silent for {now - self.lost[node]:.1f} s: a writer on its '
+                    f'liveliness topic matched {now - self.unasserted_since.get(node, now):.1f}'
+                    ' s ago never asserted its liveliness (killed as it started?)')
         if node in self.lost:
             return (f'{node} silent for {now - self.lost[node]:.1f} s: its liveliness lease '
                     f'({ifc.LIVELINESS_LEASE:g} s) expired or its writer went away')
@@ -146,7 +187,8 @@ class LivenessMonitor:
     writer is from the graph (a writer of a node named ``<name>`` in ``node``'s namespace).
 
     ``on_change(name, 'lost' | 'alive')`` is called as a node is lost or (back) alive;
-    :meth:`poll` (from a timer) confirms writers the graph had not placed yet at their event.
+    :meth:`poll` (from a timer) confirms writers the graph had not placed yet at their event,
+    and counts the writers matched, for one that never asserts its liveliness.
     """
 
     def __init__(self, node, names, grace, on_change):
@@ -171,7 +213,8 @@ class LivenessMonitor:
         try:
             change = self.watch.changed(name, info.alive_count, info.alive_count_change,
                                         info.not_alive_count_change,
-                                        writers=self.writers(name))
+                                        writers=self.writers(name),
+                                        not_alive_count=info.not_alive_count)
             if change is not None:
                 self.on_change(name, change)
         except Exception as exc:  # noqa: BLE001 - reported; the node keeps running
@@ -181,3 +224,6 @@ class LivenessMonitor:
         for name in self.watch.waiting():
             if self.watch.confirm(name, self.writers(name)) == 'alive':
                 self.on_change(name, 'alive')
+        for name, sub in self._subs.items():
+            if self.watch.matched(name, sub.get_publisher_count()) == 'lost':
+                self.on_change(name, 'lost')

@@ -168,18 +168,13 @@ def test_a_killed_planner_ends_the_mission_within_ten_seconds_of_being_reported(
                                       for e in mission.errors('liveness')), 60,
                           'the killed planner reported')
         reported = time.monotonic()
-        # Within PLANNER_RETURN (5 s) of the adapter's own liveliness event; an adapter whose
-        # subscription never heard the planner's liveliness falls back on its plan requests'
-        # time-outs (3 x 10 s).
+        # Within PLANNER_RETURN (5 s) of the adapter's own report, killed before or after
+        # the planner's first liveliness assertion reached it.
         client.spin_until(mission.get_result, 60, 'the end of the mission')
         ended = time.monotonic() - reported
-        log = nodes.logs().get('sela_adapter.log', '')
         result = mission.get_result()
         assert not result.success and result.values['code'] == 'no_plan', result.values
-        if 'planner alive' not in log:
-            assert 'did not answer' in result.message, result
-            return
-        assert ended < 10.0, (ended, log)
+        assert ended < 10.0, (ended, nodes.logs().get('sela_adapter.log', ''))
         assert 'the planner is lost' in result.message, result
         # A new goal while the planner is dead is ended at once, saying why.
         first = result.values['mission']

@@ -52,3 +52,36 @@ def test_a_longer_grace_set_at_run_time_holds_the_alarm_back():
     watch.set_grace(5.0)
     assert watch.check(now=2.0) == ([], [])
     assert watch.check(now=5.5) == (['planner'], [])
+
+
+def test_a_writer_matched_but_never_asserted_makes_its_node_lost_until_it_asserts():
+    watch = LivenessWatch(['planner'], grace=60.0, now=0.0, unasserted=5.0)
+    # Matched at 1 s; a live writer asserts well within the lease: nothing to report.
+    assert watch.matched('planner', 1, now=1.0) is None
+    assert watch.changed('planner', 1, 1, now=2.0, writers={'p1'}, not_alive_count=0) == 'alive'
+    assert watch.matched('planner', 1, now=9.0) is None
+    # Killed and reported by its lease: still matched, not alive, nothing unasserted.
+    assert watch.changed('planner', 0, -1, 1, now=10.0, writers={'p1'},
+                         not_alive_count=1) == 'lost'
+    assert watch.matched('planner', 1, now=20.0) is None
+    assert 'liveliness lease' in watch.why('planner', now=20.0)
+    # Restarted (p2) and killed again; a third start (p3), killed before its first
+    # assertion while the node is lost, leaves it lost.
+    assert watch.changed('planner', 1, 1, now=21.0, writers={'p2'}, not_alive_count=1) == 'alive'
+    assert watch.check(now=21.0) == ([], [])
+    assert watch.changed('planner', 0, -1, 1, now=22.0, writers={'p2'},
+                         not_alive_count=2) == 'lost'
+    assert watch.matched('planner', 3, now=23.0) is None  # p3 matched at 23 s...
+    assert watch.matched('planner', 3, now=28.5) is None  # ... but the node is lost already
+    # A node never seen: its only writer matched and never asserted.
+    fresh = LivenessWatch(['planner'], grace=60.0, now=0.0, unasserted=5.0)
+    assert fresh.matched('planner', 1, now=1.0) is None
+    assert fresh.matched('planner', 1, now=5.9) is None
+    assert fresh.matched('planner', 1, now=6.1) == 'lost'
+    assert fresh.matched('planner', 1, now=7.0) is None  # said once
+    assert fresh.check(now=7.0) == (['planner'], [])
+    assert 'never asserted' in fresh.why('planner', now=7.0)
+    # It asserts after all (a slow start): alive, and the alarm ends.
+    assert fresh.changed('planner', 1, 1, now=8.0, writers={'p1'}, not_alive_count=0) == 'alive'
+    assert fresh.check(now=8.0) == ([], ['planner'])
+    assert fresh.matched('planner', 1, now=20.0) is None
