@@ -77,7 +77,7 @@ class MissionRun:
     @property
     def steps(self) -> int:
         """Gaits executed over the whole mission."""
-        return len(self.logic.records)
+        return self.logic.steps
 
 
 def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=None,
@@ -144,16 +144,16 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             env.reset()
             events += [ResetDone(True, 'robot back at the start'), odometry()]
         elif isinstance(command, PublishStatus) and 'goal_reached' in command.values:
-            goal_steps.append(len(stepper.logic.records))
+            goal_steps.append(stepper.logic.steps)
         elif isinstance(command, MissionEnded):
             end = command
             if command.success:
-                goal_steps.append(len(stepper.logic.records))
-        learnt = len(stepper.logic.records)
+                goal_steps.append(stepper.logic.steps)
+        learnt = stepper.logic.steps
         for event in events:
             commands += stepper.handle(event, next(clock))
         if isinstance(command, SendGait):
-            if len(stepper.logic.records) == learnt:  # the stepper refused the outcome
+            if stepper.logic.steps == learnt:  # the stepper refused the outcome
                 raise RuntimeError(f'outcome of command {command.behavior_id} refused: '
                                    'the environment reported an implausible step')
             if on_step is not None:

@@ -5,6 +5,8 @@ trusted (nothing learnt, predictions fully sure) until adaptation starts; adapta
 from the outcome that revealed the damage, and restarts on a new damage, from the steps that
 showed it; what was learned before is set aside (kept in the state), never deleted.
 """
+from collections import deque
+
 import numpy as np
 
 from sela_ros.core.detection import EvidenceConfig
@@ -53,6 +55,8 @@ def following_waypoint(pose, waypoint, goal):
 
 #: What a detection does to what was learned while adapting (``adaptation.on_detection``).
 ON_DETECTION = ('reset', 'keep', 'evidence')
+#: Steps whose records a mission keeps in memory (the latest); a record is about 1 kB.
+RECORDS_KEPT = 10_000
 
 
 class MissionLogic:
@@ -65,10 +69,12 @@ class MissionLogic:
             gait took the robot nowhere: it is learnt as a zero displacement (learning the
             tumble's displacement instead would make a gait that falls toward the goal look
             good, and the robot would try it again and again from the start).
+        keep_records: how many of the latest steps' records ``records`` keeps.
     """
 
     def __init__(self, sela, adapt_on_start=False, reset_on_fall=False,
-                 on_detection=StepperConfig.on_detection, evidence=None):
+                 on_detection=StepperConfig.on_detection, evidence=None,
+                 keep_records=RECORDS_KEPT):
         if on_detection not in ON_DETECTION:
             raise ValueError(f'adaptation.on_detection must be one of {ON_DETECTION}, got '
                              f'{on_detection!r}')
@@ -84,7 +90,10 @@ class MissionLogic:
         # Whether the next step starts standing: after a fall and the reset that follows it
         # (reset_on_fall). Unknown at start-up (the robot may have walked): not claimed.
         self.standing_next = False
-        self.records = []
+        # The latest steps (a robot's life is not kept in memory: the state file keeps
+        # what was learnt); ``steps`` counts them all.
+        self.records = deque(maxlen=keep_records)
+        self.steps = 0
 
     def decide(self, pose, waypoint, goal=None, following=None):
         """The behaviour to execute from ``pose`` toward ``waypoint``; SELA may look one
@@ -112,13 +121,14 @@ class MissionLogic:
             self.sela.tell(*self.last)
         self.standing_next = bool(fallen) and self.reset_on_fall
         record = StepRecord(
-            step=len(self.records) + 1, behavior_index=int(decision.index),
+            step=self.steps + 1, behavior_index=int(decision.index),
             pose=np.asarray(pose, float).tolist(), waypoint=decision.waypoint.tolist(),
             predicted_gr=decision.predicted_gr.tolist(), observed_gr=observed_gr.tolist(),
             reward=float(decision.reward), sigma=float(decision.sigma),
             adapting=self.adapting, fallen=bool(fallen),
             true_pose=None if true_pose is None else np.asarray(true_pose, float).tolist())
         self.records.append(record)
+        self.steps += 1
         return record
 
     def judged(self, error):

@@ -187,7 +187,7 @@ def test_run_mission_drives_the_stepper_to_the_goal_after_a_fall(reset_on_fall):
                       straight_line_planner, on_step=steps.append,
                       stepper_config=StepperConfig(max_steps=30, adapt_on_start=True,
                                                    reset_on_fall=reset_on_fall))
-    assert run.success and run.end.code == 'succeeded' and steps == run.logic.records
+    assert run.success and run.end.code == 'succeeded' and steps == list(run.logic.records)
     first = run.logic.records[0]
     assert first.behavior_index == tips and first.fallen and run.falls >= 1
     if reset_on_fall:  # episodic: back at the start
@@ -234,3 +234,14 @@ def test_a_robot_that_starts_off_the_planners_map_is_led_onto_it_and_reaches_the
                                                                       adapt_on_start=True))
     assert run.success and run.end.code == 'succeeded', run.end
     assert np.hypot(*(robot.pose[:2] - (1.5, 1.2))) < 0.1
+
+
+def test_a_long_life_keeps_the_latest_records_only_and_counts_every_step():
+    logic = MissionLogic(_sela(), adapt_on_start=True, keep_records=5)
+    pose = np.zeros(3)
+    for _ in range(12):
+        decision = logic.decide(pose, np.array([0.3, 0.0]))
+        logic.outcome(decision, pose, [0.1, 0.0, 0.0])
+    assert logic.steps == 12 and len(logic.records) == 5
+    assert [r.step for r in logic.records] == [8, 9, 10, 11, 12]
+    assert len(logic.sela.observations[0]) == 12  # what was learnt is not the records
