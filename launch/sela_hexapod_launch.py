@@ -1,27 +1,30 @@
 """Start the four sela_ros nodes with config/sela.yaml, robot_state_publisher and maybe RViz.
 
 Usage: ``ros2 launch sela_ros sela_hexapod_launch.py [damage:=...] [seed:=...]
-[namespace:=/robot1] [rviz:=true] [interface:=trajectory]``.
+[namespace:=/robot1] [rviz:=true] [interface:=trajectory] [robot:=a1]``.
 
-Arguments: damage (default remove:middle_right), seed (0), gui (false), params_file (the
-installed config/sela.yaml), archive ('' = the shipped archive), map (the planner's map
-YAML, map_server's format or the project's, set as its map.file; '' = no file: the map.*
-parameters), namespace ('' = the root: every node, topic and service of the stack goes
-under it, so two robots can share a domain), rviz (false; true opens RViz with
-share/sela_ros/rviz/sela.rviz), interface (behavior; trajectory: the hardware path, the
-simulator showing the face of a robot under ros2_control and the gait executor playing the
-adapter's gaits on it, measured on the simulator's observed odometry: docs/hardware.md).
-The obstacle courses are installed in
-``$(ros2 pkg prefix sela_ros)/share/sela_ros/config/maps/`` (wall_gap.yaml, corridor.yaml,
-maze.yaml); a map published on ``map`` (by map_server) replaces the planner's. The goal
-command is in the README ("Send a goal").
+Arguments: robot (hexapod; a1, toy or ``package.module:DESCRIPTION``: the simulated robot,
+docs/robots.md), damage ('' = the robot's default: remove:middle_right on the hexapod,
+block:rear_right.calf on the A1; in the robot's names, e.g. remove:front_left), seed (0),
+gui (false), params_file (the installed config/sela.yaml), archive ('' = the robot's shipped
+archive), map (the planner's map YAML, map_server's format or the project's, set as its
+map.file; '' = no file: the map.* parameters), namespace ('' = the root: every node, topic
+and service of the stack goes under it, so two robots can share a domain), rviz (false; true
+opens RViz with share/sela_ros/rviz/sela.rviz), interface (behavior; trajectory: the
+hardware path, the simulator showing the face of a robot under ros2_control and the gait
+executor playing the adapter's gaits on it, measured on the simulator's observed odometry:
+docs/hardware.md). The obstacle courses are installed in ``$(ros2 pkg prefix
+sela_ros)/share/sela_ros/config/maps/`` (wall_gap.yaml, corridor.yaml, maze.yaml); a map
+published on ``map`` (by map_server) replaces the planner's. The goal command is in the
+README ("Send a goal").
 
 /tf and /tf_static are remapped to the namespace's ``tf``/``tf_static`` for
 robot_state_publisher and RViz (as nav2 does), so each robot has its own tree, and /clock to
 the namespace's ``clock`` for every node (each robot has its own simulator, so its own
 time); in the root namespace these are the usual /tf, /tf_static and /clock. The
 simulator publishes ``robot_description`` with the current damage (a removed leg is
-absent); robot_state_publisher gets the intact model from share/sela_ros/urdf/ for the legs'
+absent); robot_state_publisher gets the robot's intact model (the hexapod's is
+share/sela_ros/urdf/hexapod.urdf) for the legs'
 transforms, and its own copy of the description is moved aside so that it does not replace
 the simulator's.
 """
@@ -29,7 +32,7 @@ import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, GroupAction
+from launch.actions import DeclareLaunchArgument, GroupAction, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import EqualsSubstitution, LaunchConfiguration
 from launch_ros.actions import Node, PushRosNamespace
@@ -43,24 +46,26 @@ TF_REMAPS = [('/tf', 'tf'), ('/tf_static', 'tf_static')] + CLOCK_REMAP
 # the simulator's state comes every 0.5 s of sim time during a gait, slower than real time
 # on a loaded machine: a longer odometry timeout.
 SIMULATED_HARDWARE = {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
-                      'fall.min_height': 0.03, 'odometry.timeout': 5.0}
+                      'odometry.timeout': 5.0}
 
 
 def generate_launch_description():
     share = get_package_share_directory('sela_ros')
     default_params = os.path.join(share, 'config', 'sela.yaml')
-    with open(os.path.join(share, 'urdf', 'hexapod.urdf')) as handle:
-        urdf = handle.read()
-    params = LaunchConfiguration('params_file')
     arguments = [
         DeclareLaunchArgument('params_file', default_value=default_params,
                               description='parameter YAML keyed by node name'),
-        DeclareLaunchArgument('damage', default_value='remove:middle_right',
-                              description="damage spec, e.g. remove:middle_right or intact"),
+        DeclareLaunchArgument('robot', default_value='hexapod',
+                              description='the simulated robot: hexapod, a1, toy or '
+                                          'package.module:DESCRIPTION (docs/robots.md)'),
+        DeclareLaunchArgument('damage', default_value='',
+                              description="damage spec in the robot's names, e.g. "
+                                          "remove:middle_right or intact ('' = the robot's "
+                                          "default)"),
         DeclareLaunchArgument('seed', default_value='0', description='observation-noise seed'),
         DeclareLaunchArgument('gui', default_value='false', description="PyBullet's window"),
         DeclareLaunchArgument('archive', default_value='',
-                              description="archive file ('' = the shipped one)"),
+                              description="archive file ('' = the robot's shipped one)"),
         DeclareLaunchArgument('namespace', default_value='',
                               description="namespace of the whole stack, e.g. /robot1 "
                                           "('' = the root)"),
@@ -75,29 +80,48 @@ def generate_launch_description():
                               "the hardware path (gait_executor and the simulator's "
                               "ros2_control face)"),
     ]
+    stack = GroupAction([PushRosNamespace(LaunchConfiguration('namespace')),
+                         OpaqueFunction(function=robot_nodes, args=[share])])
+    return LaunchDescription(arguments + [stack])
+
+
+def robot_nodes(context, share):
+    """The stack's nodes for the robot the ``robot`` argument names: its simulator, its
+    map (unless ``archive`` names one), its model for robot_state_publisher and, with
+    ``interface:=trajectory``, the simulator's fall test for the gait executor."""
+    from sim_bridge.robots import get_robot
+
+    robot = get_robot(LaunchConfiguration('robot').perform(context))
+    archive = LaunchConfiguration('archive').perform(context) or robot.archive
+    damage = LaunchConfiguration('damage').perform(context) or robot.default_damage
+    params = LaunchConfiguration('params_file')
     hardware = IfCondition(EqualsSubstitution(LaunchConfiguration('interface'), 'trajectory'))
-    nodes = [
+    return [
         Node(package='sela_ros', executable='sim_bridge', name='sim_bridge', output='screen',
-             parameters=[params, {'damage': LaunchConfiguration('damage'),
+             parameters=[params, {'robot': robot.name,
+                                  'damage': damage,
                                   'seed': LaunchConfiguration('seed'),
                                   'sim.gui': LaunchConfiguration('gui'),
-                                  'archive': LaunchConfiguration('archive'),
+                                  'archive': archive,
                                   'interface': LaunchConfiguration('interface')}],
              remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='gait_executor', name='gait_executor',
-             output='screen', parameters=[params, SIMULATED_HARDWARE], remappings=CLOCK_REMAP,
-             condition=hardware),
+             output='screen', parameters=[params, {
+                 **SIMULATED_HARDWARE, 'robot': robot.name,
+                 'fall.tilt': float(robot.fall_tilt),
+                 'fall.min_height': float(robot.fall_height)}],
+             remappings=CLOCK_REMAP, condition=hardware),
         Node(package='sela_ros', executable='planner', name='planner', output='screen',
              parameters=[params, {'map.file': LaunchConfiguration('map')}],
              remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='damage_detector', name='damage_detector',
              output='screen', parameters=[params], remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='sela_adapter', name='sela_adapter',
-             output='screen', parameters=[params, {'archive': LaunchConfiguration('archive')}],
+             output='screen', parameters=[params, {'archive': archive}],
              remappings=CLOCK_REMAP),
         Node(package='robot_state_publisher', executable='robot_state_publisher',
              name='robot_state_publisher', output='screen',
-             parameters=[{'robot_description': urdf, 'use_sim_time': True}],
+             parameters=[{'robot_description': robot.urdf(), 'use_sim_time': True}],
              remappings=TF_REMAPS + [
                  ('joint_states', 'hexapod/joint_states'),
                  ('robot_description', 'robot_state_publisher/robot_description')]),
@@ -106,5 +130,3 @@ def generate_launch_description():
              parameters=[{'use_sim_time': True}], remappings=TF_REMAPS,
              condition=IfCondition(LaunchConfiguration('rviz'))),
     ]
-    stack = GroupAction([PushRosNamespace(LaunchConfiguration('namespace'))] + nodes)
-    return LaunchDescription(arguments + [stack])

@@ -22,21 +22,47 @@ class _Recorder:
         self.args, self.kwargs = args, kwargs
 
 
-def _load_launch(monkeypatch, filename):
+class _Context:
+    """The launch context a robot_nodes function is given: the arguments' values."""
+
+    def __init__(self, values):
+        self.launch_configurations = values
+
+
+def _load_launch(monkeypatch, filename, **values):
+    """The launch file's description, its OpaqueFunctions expanded as ``ros2 launch`` would
+    with the declared defaults and ``values`` (launch arguments)."""
     fakes = {'launch': ['LaunchDescription'],
-             'launch.actions': ['DeclareLaunchArgument', 'GroupAction'],
+             'launch.actions': ['DeclareLaunchArgument', 'GroupAction', 'OpaqueFunction'],
              'launch.conditions': ['IfCondition'],
              'launch.substitutions': ['EqualsSubstitution', 'LaunchConfiguration'],
              'launch_ros': [], 'launch_ros.actions': ['Node', 'PushRosNamespace']}
+    methods = {'LaunchConfiguration': {'perform': lambda self, context:
+                                       context.launch_configurations[self.args[0]]}}
     for name, classes in fakes.items():
         module = types.ModuleType(name)
         for cls in classes:
-            setattr(module, cls, type(cls, (_Recorder,), {}))
+            setattr(module, cls, type(cls, (_Recorder,), methods.get(cls, {})))
         monkeypatch.setitem(sys.modules, name, module)
     spec = importlib.util.spec_from_file_location('sela_launch', ROOT / 'launch' / filename)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module.generate_launch_description()
+    description = module.generate_launch_description()
+    context = _Context({**{a.args[0]: a.kwargs['default_value'] for a in description.args[0]
+                           if type(a).__name__ == 'DeclareLaunchArgument'}, **values})
+
+    def expand(actions):
+        out = []
+        for action in actions:
+            if type(action).__name__ == 'OpaqueFunction':
+                out += expand(action.kwargs['function'](context,
+                                                        *action.kwargs.get('args', ())))
+            elif type(action).__name__ == 'GroupAction':
+                out.append(type(action)(expand(action.args[0]), **action.kwargs))
+            else:
+                out.append(action)
+        return out
+    return type(description)(expand(description.args[0]), **description.kwargs)
 
 
 @pytest.fixture
@@ -66,7 +92,9 @@ def test_launch_starts_the_four_nodes_with_the_config(launch_description):
                 if type(a).__name__ == 'DeclareLaunchArgument'}
     assert declared['params_file'].endswith('share/sela_ros/config/sela.yaml')
     assert Path(declared['params_file']).is_file()
-    assert declared['damage'] == 'remove:middle_right'
+    assert declared['damage'] == '' and declared['robot'] == 'hexapod'
+    sim = [n for n in nodes if n.kwargs['executable'] == 'sim_bridge'][0]
+    assert sim.kwargs['parameters'][1]['damage'] == 'remove:middle_right'  # the hexapod's
     assert declared['namespace'] == '' and declared['rviz'] == 'false'
 
 
@@ -114,13 +142,35 @@ def test_interface_trajectory_runs_the_hardware_path_in_simulation(launch_descri
     from sim_bridge.robots import get_robot
 
     params = executor.kwargs['parameters'][1]
-    assert {**params, 'robot': 'hexapod', 'fall.tilt': get_robot('hexapod').fall_tilt} == \
-        simulated_hardware(get_robot('hexapod'))  # sela-demo --interface trajectory's
-    assert params == {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'hexapod/imu',
-                      'fall.min_height': 0.03, 'odometry.timeout': 5.0}
+    assert params == simulated_hardware(get_robot('hexapod'))  # as sela-demo's
+    assert params['odometry_topic'] == 'hexapod/odom_observed'
+    assert params['fall.min_height'] == 0.03
     from sela_ros.nodes import interface as ifc
 
     assert (ifc.ODOM_OBSERVED.name, ifc.IMU.name) == ('hexapod/odom_observed', 'hexapod/imu')
+
+
+def test_robot_a1_runs_the_stack_on_the_a1_its_map_model_and_fall_test(monkeypatch):
+    launch = _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='a1')
+    from sela_ros.tools.demo import simulated_hardware
+    from sim_bridge.robots import get_robot
+
+    a1 = get_robot('a1')
+    nodes = {n.kwargs['executable']: n for n in _nodes(launch)}
+    sim = nodes['sim_bridge'].kwargs['parameters'][1]
+    assert (sim['robot'], sim['archive'], sim['damage']) == ('a1', 'a1', a1.default_damage)
+    assert nodes['sela_adapter'].kwargs['parameters'][1]['archive'] == 'a1'
+    assert nodes['gait_executor'].kwargs['parameters'][1] == simulated_hardware(a1)
+    urdf = nodes['robot_state_publisher'].kwargs['parameters'][0]['robot_description']
+    assert urdf == a1.urdf() and 'a1_description' in urdf
+    # An archive and a damage given are used as given.
+    launch = _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='a1',
+                          archive='/maps/mine.npz', damage='remove:front_left')
+    nodes = {n.kwargs['executable']: n for n in _nodes(launch)}
+    sim = nodes['sim_bridge'].kwargs['parameters'][1]
+    assert (sim['archive'], sim['damage']) == ('/maps/mine.npz', 'remove:front_left')
+    with pytest.raises(ValueError, match='unknown robot'):
+        _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='walrus')
 
 
 def test_the_hardware_launch_runs_the_stack_on_a_robots_own_topics(monkeypatch):
