@@ -105,11 +105,19 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            **{f'affine-0.5-progress-{w}': {'priors.weights.sd': 1.0,
                                            'acquisition.caution': 0.15,
                                            'gp.mean.affine': 0.5, 'acquisition.progress': w}
-              for w in (1.0, 2.0)}}
+              for w in (1.0, 2.0)},
+           **{f'affine-0.5-progress-{w}-h1': {'priors.weights.sd': 1.0,
+                                              'acquisition.caution': 0.15,
+                                              'gp.mean.affine': 0.5, 'acquisition.progress': w,
+                                              'planner.horizon': 1}
+              for w in (1.0,)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
-#: (commit "learning: an affine map of the prior mean learnt from the steps; ...").
-REPORTED_ONLY = ('affine-0.5-ungated',)
+#: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
+#: ``progress-1.0-v1``, ``affine-0.5-progress-1.0-v1``: ``acquisition.progress`` 1 with the
+#: progress along the path taken at its predicted mean (commit "learning: a choice by progress
+#: along the path (acquisition.progress, off by default)").
+REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-v1', 'affine-0.5-progress-1.0-v1')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -240,7 +248,8 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               weights_sd=settings.get('priors.weights.sd'),
               caution=settings.get('acquisition.caution', 'none'), prior_mean=prior_mean,
               mean_affine=settings.get('gp.mean.affine', 'none'),
-              progress=settings.get('acquisition.progress', 'none'), trace=args.trace,
+              progress=settings.get('acquisition.progress', 'none'),
+              horizon=settings.get('planner.horizon'), trace=args.trace,
               **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (
