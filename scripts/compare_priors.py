@@ -114,10 +114,11 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
-#: ``progress-1.0-v1``, ``affine-0.5-progress-1.0-v1``: ``acquisition.progress`` 1 with the
-#: progress along the path taken at its predicted mean (commit "learning: a choice by progress
-#: along the path (acquisition.progress, off by default)").
-REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-v1', 'affine-0.5-progress-1.0-v1')
+#: ``*-progress-1.0*-lcb``: ``acquisition.progress`` 1 with the progress along the path one
+#: standard deviation of the landing short of its mean (commit "learning: progress along the
+#: path counted one standard deviation short when caution is on").
+REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
+                 'affine-0.5-progress-1.0-h1-lcb')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to

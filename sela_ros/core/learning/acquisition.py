@@ -104,21 +104,18 @@ def path_coordinates(path, x, y):
 def progress_reward(path, x, y, waypoint, off_weight, landing_var=None) -> np.ndarray:
     """Specialised reward of landing at each ``(x, y)``: how far along ``path`` beyond
     ``waypoint`` its nearest point on the path lies (negative: short of it), less
-    ``off_weight`` times its distance off the path; with ``landing_var``, the variance per
-    axis of each landing, that distance's root mean square, and less one standard deviation
-    of the landing along the path (the progress it is sure of: a mean along the path alone
-    would take an untried gait's prediction at its word, however wrong the model has proved).
-    A landing on the waypoint scores 0, as it does by the distance to it."""
+    ``off_weight`` times its distance off the path (with ``landing_var``, the variance per
+    axis of each landing: that distance's root mean square; the progress is its mean: one
+    standard deviation less keeps a robot on the gait it knows that stays put,
+    docs/learning_the_damage.md). A landing on the waypoint scores 0, as it does by the
+    distance to it."""
     if not np.isfinite(off_weight) or off_weight < 0:
         raise ValueError(f'off_weight must be a finite number >= 0, got {off_weight!r}')
     s, off = path_coordinates(path, x, y)
     s_waypoint, _ = path_coordinates(path, [waypoint[0]], [waypoint[1]])
-    reward = s - s_waypoint[0]
     if landing_var is not None:
-        landing_var = np.asarray(landing_var, dtype=float)
-        off = np.sqrt(off * off + landing_var)
-        reward -= np.sqrt(landing_var)
-    return reward - off_weight * off
+        off = np.sqrt(off * off + np.asarray(landing_var, dtype=float))
+    return s - s_waypoint[0] - off_weight * off
 
 
 def progress_reward_from(path, origins, cos, sin, displacement, waypoint, off_weight,
@@ -170,7 +167,6 @@ def progress_reward_from(path, origins, cos, sin, displacement, waypoint, off_we
     best_s -= s_waypoint[0]
     if landing_var is not None:
         best_sq += landing_var
-        best_s -= np.sqrt(landing_var)
     np.sqrt(best_sq, out=best_sq)
     best_sq *= off_weight
     best_s -= best_sq
