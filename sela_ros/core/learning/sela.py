@@ -42,7 +42,9 @@ class Decision:
     waypoint: np.ndarray
     predicted_gr: np.ndarray
     predicted_pose: np.ndarray
-    reward: float  # specialised reward: -||waypoint - predicted xy|| (caution: expected)
+    # specialised reward: -||waypoint - predicted xy|| (caution: expected; acquisition.progress:
+    # the progress along the path beyond the waypoint, acquisition.progress_reward)
+    reward: float
     sigma: float   # posterior standard deviation of the chosen behaviour
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     fall_risk: float = 0.0  # predicted risk that the chosen behaviour tips the robot over
