@@ -14,7 +14,7 @@ fallen robot righted where it lies. Methods:
 * ``progress-1.0``, ``progress-2.0``: ``caution`` with each gait scored by its progress along
   the path (``acquisition.progress``, the weight of the distance off the path);
   ``affine-0.5-progress-1.0``, ``affine-0.5-progress-2.0``: the same with ``gp.mean.affine``
-  0.5;
+  0.5; ``affine-0.5-progress-1.0-h1``: that with one step looked ahead (``planner.horizon`` 1);
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
