@@ -67,14 +67,14 @@ def library_like(priors, count, seed=0):
 
 
 def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
-                  caution=None, mean_affine=None):
+                  caution=None, mean_affine=None, progress=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
     step is timed with a damage prior in use; ``mixed``: of two of them added up, from a
     standing start first, so the mixture of the tables is in use) and two steps ahead;
-    ``caution``: ``acquisition.caution``, ``mean_affine``: ``gp.mean.affine`` (None: the
-    defaults). The last item returned says
+    ``caution``: ``acquisition.caution``, ``mean_affine``: ``gp.mean.affine``,
+    ``progress``: ``acquisition.progress`` (None: the defaults). The last item returned says
     whether caution was on in the steps timed."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.mission import make_sela
@@ -98,6 +98,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         config['acquisition.caution'] = caution
     if mean_affine is not None:
         config['gp.mean.affine'] = mean_affine
+    if progress is not None:
+        config['acquisition.progress'] = progress
     sela = make_sela(archive, config or None, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
@@ -119,6 +121,24 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
             int(sela.config.planner_horizon), cautious)
 
 
+def interleave_progress(args):
+    """The step on the shipped map with ``acquisition.progress`` none and the weight asked
+    for, one after the other ``--rounds`` times, so that the machine's load weighs on both
+    alike."""
+    times = {'none': [], args.interleave_progress: []}
+    for r in range(args.rounds):
+        for progress in times:
+            t, _, _, prior, _, cautious = bench_shipped(caution=args.caution,
+                                                        mean_affine=args.mean_affine,
+                                                        progress=progress)
+            times[progress].append(t)
+            print(f'  round {r + 1}/{args.rounds}, acquisition.progress {progress}: median '
+                  f'{1e3 * t:.2f} ms (prior in use: {prior}){_on(cautious)}', flush=True)
+    for progress, ts in times.items():
+        print(f'shipped 8-D map, acquisition.progress {progress}: median of the rounds\' '
+              f'medians {1e3 * float(np.median(ts)):.2f} ms (target < 20 ms)')
+
+
 def _on(cautious):
     return ', caution on' if cautious else ''
 
@@ -138,7 +158,17 @@ def main():
     parser.add_argument('--mean-affine', default=None,
                         help="gp.mean.affine for the steps on the shipped map, a number or "
                              "none (default: the config's)")
+    parser.add_argument('--progress', default=None,
+                        help="acquisition.progress for the steps on the shipped map, a number "
+                             "or none (default: the config's)")
+    parser.add_argument('--interleave-progress', type=float, default=None,
+                        help='only time the step on the shipped map with acquisition.progress '
+                             'none and this weight, alternately (--rounds times each)')
+    parser.add_argument('--rounds', type=int, default=5)
     args = parser.parse_args()
+    if args.interleave_progress is not None:
+        interleave_progress(args)
+        return
     print('SELA step (ask + tell + fall model, 8-D descriptors, 2 GR dims):')
     for m in (1e3, 1e4, 2e4, 1e5, 1e6):
         if m > args.max_candidates:

@@ -11,6 +11,10 @@ fallen robot righted where it lies. Methods:
 * ``caution``: the same, with ``acquisition.caution`` 0.15 m: the node's defaults (every
   other method runs with caution none, the paper's rule); ``caution-0.1``, ``caution-0.2``,
   ``caution-0.3``: other settings of it;
+* ``progress-1.0``, ``progress-2.0``: ``caution`` with each gait scored by its progress along
+  the path (``acquisition.progress``, the weight of the distance off the path);
+  ``affine-0.5-progress-1.0``, ``affine-0.5-progress-2.0``: the same with ``gp.mean.affine``
+  0.5; ``affine-0.5-progress-1.0-h1``: that with one step looked ahead (``planner.horizon`` 1);
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -94,11 +98,27 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            **{f'affine-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                               'gp.mean.affine': v} for v in (0.25, 0.5, 1.0)},
            **{f'affine-{v}-nocaution': {'priors.weights.sd': 1.0, 'gp.mean.affine': v}
-              for v in (0.5,)}}
+              for v in (0.5,)},
+           **{f'progress-{w}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                                'gp.mean.affine': 'none', 'acquisition.progress': w}
+              for w in (1.0, 2.0)},
+           **{f'affine-0.5-progress-{w}': {'priors.weights.sd': 1.0,
+                                           'acquisition.caution': 0.15,
+                                           'gp.mean.affine': 0.5, 'acquisition.progress': w}
+              for w in (1.0, 2.0)},
+           **{f'affine-0.5-progress-{w}-h1': {'priors.weights.sd': 1.0,
+                                              'acquisition.caution': 0.15,
+                                              'gp.mean.affine': 0.5, 'acquisition.progress': w,
+                                              'planner.horizon': 1}
+              for w in (1.0,)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
-#: (commit "learning: an affine map of the prior mean learnt from the steps; ...").
-REPORTED_ONLY = ('affine-0.5-ungated',)
+#: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
+#: ``*-progress-1.0*-lcb``: ``acquisition.progress`` 1 with the progress along the path one
+#: standard deviation of the landing short of its mean (commit "learning: progress along the
+#: path counted one standard deviation short when caution is on").
+REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
+                 'affine-0.5-progress-1.0-h1-lcb')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -228,7 +248,9 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
               weights_sd=settings.get('priors.weights.sd'),
               caution=settings.get('acquisition.caution', 'none'), prior_mean=prior_mean,
-              mean_affine=settings.get('gp.mean.affine', 'none'), trace=args.trace,
+              mean_affine=settings.get('gp.mean.affine', 'none'),
+              progress=settings.get('acquisition.progress', 'none'),
+              horizon=settings.get('planner.horizon'), trace=args.trace,
               **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (

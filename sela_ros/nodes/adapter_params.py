@@ -27,6 +27,12 @@ PARAMETERS = (
          'is scored by its expected distance to the waypoint, which prefers gaits already '
          "tried; none = never (the paper's: the predicted distance)", low=0.0, high=100.0,
          unit=' m', kind='double', word=NONE, read_only=True),
+    Spec('acquisition.progress', NONE if SELAConfig.acquisition_progress is None
+         else SELAConfig.acquisition_progress, 'each gait is scored by how far along the '
+         'planned path (past the waypoint, to the goal) its predicted landing puts the robot, '
+         "less this weight times its distance off the path; none = by its distance to the "
+         "waypoint (the paper's)", low=0.0, high=100.0, kind='double', word=NONE,
+         read_only=True),
     Spec('goal.eps', 0.1, 'the goal is reached within this distance', low=1e-4, high=100.0,
          unit=' m', read_only=True),
     Spec('fall.risk.threshold', 0.3, 'risk of falling accepted: gaits predicted riskier are '
@@ -107,7 +113,7 @@ PARAMETERS = (
          read_only=True),
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'gp.mean.affine', 'acquisition.ucb.alpha',
-             'acquisition.caution',
+             'acquisition.caution', 'acquisition.progress',
              'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
              'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',

@@ -70,3 +70,124 @@ def expected_distance(sq_distance, landing_var) -> np.ndarray:
     """Approximate expected distance from a target of a landing ``N(mu, landing_var I_2)``
     whose mean is ``sq_distance`` (squared) away: ``sqrt(d^2 + 2 s^2)``, its root mean square."""
     return np.sqrt(np.maximum(sq_distance, 0.0) + 2.0 * landing_var)
+
+
+# Progress along the path (``acquisition.progress``): a gait is scored by where its landing
+# puts the robot on the planned path, not by its distance to one waypoint on it. A robot whose
+# gaits all fall short of the waypoint then still takes the one that goes furthest along the
+# path, and a gait that lands beyond the waypoint is not punished for it.
+
+
+def path_coordinates(path, x, y):
+    """Arc length along ``path`` (n, 2) of the nearest point of the path to each ``(x, y)``,
+    and the distance to it: ``(s (M,), off (M,))``; a point beyond either end projects on it."""
+    path = np.asarray(path, dtype=float)
+    x = np.asarray(x, dtype=float).reshape(-1)
+    y = np.asarray(y, dtype=float).reshape(-1)
+    if path.ndim != 2 or path.shape[1] != 2 or len(path) < 1 or not np.all(np.isfinite(path)):
+        raise ValueError(f'path must be a finite (n, 2) array with n >= 1, got {path.shape}')
+    if len(path) == 1:
+        return np.zeros(x.size), np.hypot(x - path[0, 0], y - path[0, 1])
+    a, seg = path[:-1], np.diff(path, axis=0)
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    start = np.concatenate([[0.0], np.cumsum(length)[:-1]])
+    # (M, n-1): each point's projection on each segment, clipped to it.
+    dx, dy = x[:, None] - a[None, :, 0], y[:, None] - a[None, :, 1]
+    t = np.clip((dx * seg[:, 0] + dy * seg[:, 1]) / np.maximum(length ** 2, 1e-18), 0.0, 1.0)
+    ox, oy = dx - t * seg[:, 0], dy - t * seg[:, 1]
+    sq = ox * ox + oy * oy
+    k = np.argmin(sq, axis=1)
+    rows = np.arange(x.size)
+    return start[k] + t[rows, k] * length[k], np.sqrt(sq[rows, k])
+
+
+def progress_reward(path, x, y, waypoint, off_weight, landing_var=None) -> np.ndarray:
+    """Specialised reward of landing at each ``(x, y)``: how far along ``path`` beyond
+    ``waypoint`` its nearest point on the path lies (negative: short of it), less
+    ``off_weight`` times its distance off the path (with ``landing_var``, the variance per
+    axis of each landing: that distance's root mean square; the progress is its mean: one
+    standard deviation less keeps a robot on the gait it knows that stays put,
+    docs/learning_the_damage.md). A landing on the waypoint scores 0, as it does by the
+    distance to it."""
+    if not np.isfinite(off_weight) or off_weight < 0:
+        raise ValueError(f'off_weight must be a finite number >= 0, got {off_weight!r}')
+    s, off = path_coordinates(path, x, y)
+    s_waypoint, _ = path_coordinates(path, [waypoint[0]], [waypoint[1]])
+    if landing_var is not None:
+        off = np.sqrt(off * off + np.asarray(landing_var, dtype=float))
+    return s - s_waypoint[0] - off_weight * off
+
+
+def progress_reward_from(path, origins, cos, sin, displacement, waypoint, off_weight,
+                         landing_var=None) -> np.ndarray:
+    """:func:`progress_reward` of every landing ``origins[k] + R_k displacement[:, m]``
+    (``R_k`` the rotation by the angle whose cosine and sine are ``cos[k]``, ``sin[k]``):
+    ``(K, M)``, from rank-2 products per segment of ``path`` rather than K M projections
+    (``landing_var``: ``(K, M)`` or None)."""
+    path = np.asarray(path, dtype=float)
+    origins = np.asarray(origins, dtype=float)[:, :2]
+    g = np.asarray(displacement, dtype=float)[:2]
+    seg = np.diff(path, axis=0)
+    length = np.hypot(seg[:, 0], seg[:, 1]) if len(path) > 1 else np.zeros(0)
+    if not (length > 1e-12).any():
+        x = origins[:, 0, None] + cos[:, None] * g[0] - sin[:, None] * g[1]
+        y = origins[:, 1, None] + sin[:, None] * g[0] + cos[:, None] * g[1]
+        var = None if landing_var is None else np.asarray(landing_var).reshape(-1)
+        return progress_reward(path, x.reshape(-1), y.reshape(-1), waypoint, off_weight,
+                               var).reshape(x.shape)
+    if not np.isfinite(off_weight) or off_weight < 0:
+        raise ValueError(f'off_weight must be a finite number >= 0, got {off_weight!r}')
+    start = np.concatenate([[0.0], np.cumsum(length)[:-1]])
+    ones = np.vstack([g, np.ones((1, g.shape[1]))])  # (3, M): a row's offset in the product
+    best_sq = best_s = None
+    for a, d, n, s0 in zip(path[:-1], seg, length, start):
+        if n <= 1e-12:
+            continue
+        u, v = d / n, np.array([-d[1], d[0]]) / n
+        # The landing's along- and across-track coordinates: (R_k^T u) . g + (o_k - a) . u,
+        # one (K, 3) @ (3, M) product each.
+        rel = origins - a
+        along = np.column_stack([cos * u[0] + sin * u[1], cos * u[1] - sin * u[0],
+                                 rel @ u]) @ ones
+        cross = np.column_stack([cos * v[0] + sin * v[1], cos * v[1] - sin * v[0],
+                                 rel @ v]) @ ones
+        t = np.clip(along, 0.0, n)
+        along -= t
+        along *= along
+        cross *= cross
+        along += cross
+        t += s0
+        if best_sq is None:
+            best_sq, best_s = along, t
+        else:
+            nearer = along < best_sq
+            np.copyto(best_sq, along, where=nearer)
+            np.copyto(best_s, t, where=nearer)
+    s_waypoint, _ = path_coordinates(path, [waypoint[0]], [waypoint[1]])
+    best_s -= s_waypoint[0]
+    if landing_var is not None:
+        best_sq += landing_var
+    np.sqrt(best_sq, out=best_sq)
+    best_sq *= off_weight
+    best_s -= best_sq
+    return best_s
+
+
+def path_from(path, point, length):
+    """The part of ``path`` from the projection of ``point`` on it, ``length`` metres long
+    (shorter where the path ends): the track the second of two steps is scored along."""
+    path = np.asarray(path, dtype=float)
+    s, _ = path_coordinates(path, [point[0]], [point[1]])
+    if len(path) < 2:
+        return path.copy()
+    seg = np.diff(path, axis=0)
+    cum = np.concatenate([[0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))])
+    first, last = s[0], min(s[0] + length, cum[-1])
+
+    def at(arc):
+        k = int(np.clip(np.searchsorted(cum, arc, side='right') - 1, 0, len(seg) - 1))
+        span = cum[k + 1] - cum[k]
+        return path[k] + seg[k] * ((arc - cum[k]) / span if span > 0 else 0.0)
+
+    inner = path[(cum > first) & (cum < last)]
+    return np.vstack([at(first), inner, at(last)])

@@ -42,7 +42,9 @@ class Decision:
     waypoint: np.ndarray
     predicted_gr: np.ndarray
     predicted_pose: np.ndarray
-    reward: float  # specialised reward: -||waypoint - predicted xy|| (caution: expected)
+    # specialised reward: -||waypoint - predicted xy|| (caution: expected; acquisition.progress:
+    # the progress along the path beyond the waypoint, acquisition.progress_reward)
+    reward: float
     sigma: float   # posterior standard deviation of the chosen behaviour
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     fall_risk: float = 0.0  # predicted risk that the chosen behaviour tips the robot over
@@ -423,6 +425,7 @@ class SELA:
         """
         pose = self._check_pose(pose)
         second = None
+        waypoint_given = waypoint is not None
         if waypoint is not None:
             waypoint = np.asarray(waypoint, dtype=float).reshape(-1)[:2]
             path = np.array([pose[:2], waypoint])
@@ -443,8 +446,13 @@ class SELA:
         x, y = self.motion.predict_xy_columns(pose, mu_t)
         landing_var = self._landing_variance(var)
         sq_distance = (x - waypoint[0]) ** 2 + (y - waypoint[1]) ** 2
-        reward = -(np.sqrt(sq_distance) if landing_var is None
-                   else acquisition.expected_distance(sq_distance, landing_var))
+        track = self._track(pose, waypoint, path, waypoint_given)
+        if track is not None:
+            reward = acquisition.progress_reward(track, x, y, waypoint,
+                                                 self.config.acquisition_progress, landing_var)
+        else:
+            reward = -(np.sqrt(sq_distance) if landing_var is None
+                       else acquisition.expected_distance(sq_distance, landing_var))
         nearer = None
         if landing_var is not None and self.goal is not None and np.linalg.norm(
                 waypoint - self.goal) <= self.config.goal_eps:
@@ -468,7 +476,7 @@ class SELA:
         if self.config.planner_horizon > 1 and second is not None \
                 and np.linalg.norm(second - waypoint) > 1e-6:
             index = self._two_step_choice(pose, mu_t, scores, risk if fall_aware else None,
-                                          second, index, landing_var)
+                                          second, index, landing_var, track, waypoint)
         gr = mu_t[:, index].copy()
         return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
                         predicted_pose=self.motion.predict(pose, gr),
@@ -511,11 +519,26 @@ class SELA:
                         candidates=top_candidates(index, x, y, sigma, scores),
                         prior=HEDGED)
 
-    def _two_step_choice(self, pose, mu_t, scores, risk, second, index, landing_var=None):
+    def _track(self, pose, waypoint, path, waypoint_given):
+        """The path the progress of a landing is measured along (``acquisition.progress``):
+        the planned one, or with only the waypoint given, from the robot through it to the
+        goal; None: the progress is not used."""
+        if self.config.acquisition_progress is None:
+            return None
+        if not waypoint_given:
+            return path
+        points = [pose[:2], waypoint]
+        if self.goal is not None and np.linalg.norm(self.goal - waypoint) > 1e-6:
+            points.append(self.goal)
+        return np.array(points)
+
+    def _two_step_choice(self, pose, mu_t, scores, risk, second, index, landing_var=None,
+                         track=None, waypoint=None):
         """Among the :data:`TWO_STEP_CANDIDATES` best gaits by ``scores``, the one from whose
         predicted end pose the best next gait (risk weighed as in the first step) lands
         nearest ``second`` (with ``landing_var``, the caution's: in expectation, both
-        landings uncertain); ``index`` if no gait is allowed."""
+        landings uncertain), or with ``track`` (``acquisition.progress``), furthest along it
+        from ``waypoint`` on; ``index`` if no gait is allowed."""
         finite = np.flatnonzero(np.isfinite(scores))
         if not finite.size:
             return index
@@ -528,18 +551,38 @@ class SELA:
             first = c.fall_risk_cost * risk
         # Every candidate's end pose at once: (K, M) distances of the next gaits' landings.
         ends = self.motion.predict(pose, mu_t[:, top].T).reshape(len(top), -1)
-        cost = self.motion.landing_sq_distances(ends, mu_t, second)  # (K, M), in place:
-        np.maximum(cost, 0.0, out=cost)
-        if landing_var is not None:  # the expected distances: both landings' spread
-            cost += 2.0 * landing_var[None, :]
-            cost += 2.0 * landing_var[top][:, None]
-        np.sqrt(cost, out=cost)                                       # the distances, then
+        if track is not None:
+            cost = -self._two_step_progress(ends, mu_t, track, waypoint, second, top,
+                                            landing_var)
+        else:
+            cost = self.motion.landing_sq_distances(ends, mu_t, second)  # (K, M), in place:
+            np.maximum(cost, 0.0, out=cost)
+            if landing_var is not None:  # the expected distances: both landings' spread
+                cost += 2.0 * landing_var[None, :]
+                cost += 2.0 * landing_var[top][:, None]
+            np.sqrt(cost, out=cost)                                   # the distances, then
         if risk is not None:                                          # + the risk penalty
             cost += penalty
         value = -cost.min(axis=1)
         if risk is not None:
             value = value - first[top]
         return int(top[int(np.argmax(value))]) if np.isfinite(value).any() else index
+
+    def _two_step_progress(self, ends, mu_t, track, waypoint, second, top, landing_var):
+        """(K, M) progress rewards (:func:`~acquisition.progress_reward`) beyond ``second``
+        of every gait's landing from each of the K end poses ``ends`` of the gaits ``top``,
+        along ``track`` from ``waypoint`` (the first step's) on."""
+        theta = ends[:, 2] if ends.shape[1] > 2 else np.zeros(len(ends))
+        # Only the track from the first waypoint on, to twice as far beyond the second: the
+        # second landings lie there, and a few segments keep the (K, M) products few.
+        track = acquisition.path_from(track, waypoint,
+                                      3.0 * np.linalg.norm(np.asarray(second) - waypoint))
+        var = None
+        if landing_var is not None:
+            var = landing_var[None, :] + landing_var[top][:, None]
+        return acquisition.progress_reward_from(track, ends, np.cos(theta), np.sin(theta),
+                                                mu_t, second, self.config.acquisition_progress,
+                                                var)
 
     def tell(self, index: int, observed_gr, standing_start: bool = False) -> None:
         """Learn that behaviour ``index`` produced the generic reward ``observed_gr``;

@@ -47,6 +47,11 @@ class SELAConfig:
     # to the waypoint, which prefers gaits whose landing is known; None (none): never, the
     # predicted distance (the paper's).
     acquisition_caution: float | None = acquisition.DEFAULT_CAUTION
+    # Weight of the distance off the path against the distance along it: each gait is scored
+    # by how far along the planned path (from the robot past the waypoint to the goal) its
+    # landing puts the robot, less this times its distance off the path
+    # (acquisition.progress_reward); None (none): by its distance to the waypoint (the paper's).
+    acquisition_progress: float | None = None
     # m along the path to the waypoint of the reward (hexapod: docs/hexapod_results.md)
     planner_lookahead: float = 0.6
     # Steps looked ahead: 1, the paper's (the gait landing nearest the waypoint), or 2 (the
@@ -117,7 +122,7 @@ AUTO = 'auto'
 NONE = 'none'
 #: ``{name: word}`` of the parameters a SELAConfig may hold as None.
 WORDS = {'fall.kernel.sigma': AUTO, 'priors.max.misfit': NONE, 'priors.weights.sd': NONE,
-         'acquisition.caution': NONE, 'gp.mean.affine': NONE}
+         'acquisition.caution': NONE, 'gp.mean.affine': NONE, 'acquisition.progress': NONE}
 #: The parameters whose ``auto`` is the archive's (:func:`sela_ros.core.mission.archive_config`).
 ARCHIVE_AUTO = ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon')
 

@@ -54,3 +54,66 @@ def test_a_gait_tried_lands_surer_than_one_far_from_any_tried():
     # On the target: the expected distance is the spread's; far off: about the distance.
     assert expected_distance(0.0, var[2]) == pytest.approx(np.sqrt(2 * var[2]))
     assert expected_distance(4.0, var[0]) == pytest.approx(2.0, rel=1e-3)
+
+
+def test_path_coordinates_project_on_the_nearest_segment():
+    from sela_ros.core.learning.acquisition import path_coordinates
+
+    path = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0]])
+    s, off = path_coordinates(path, [0.5, 1.2, -0.5, 1.0, 3.0], [0.1, 1.0, 0.0, 3.0, 0.0])
+    np.testing.assert_allclose(s, [0.5, 2.0, 0.0, 3.0, 1.0])
+    np.testing.assert_allclose(off, [0.1, 0.2, 0.5, 1.0, 2.0])
+    s, off = path_coordinates(np.array([[1.0, 1.0]]), [1.0], [2.0])
+    assert s.tolist() == [0.0] and off.tolist() == [1.0]
+    with pytest.raises(ValueError, match='path'):
+        path_coordinates(np.array([[0.0, np.nan], [1.0, 0.0]]), [0.0], [0.0])
+
+
+def test_progress_reward_counts_what_is_gained_along_the_path():
+    from sela_ros.core.learning.acquisition import progress_reward
+
+    path = np.array([[0.0, 0.0], [0.6, 0.0], [2.0, 0.0]])
+    # Short of the waypoint on the path, beyond it, on it, and as far along but aside.
+    x, y = np.array([0.2, 1.0, 0.6, 0.2]), np.array([0.0, 0.0, 0.0, 0.3])
+    reward = progress_reward(path, x, y, [0.6, 0.0], 1.0)
+    np.testing.assert_allclose(reward, [-0.4, 0.4, 0.0, -0.7])
+    # By the distance to the waypoint, the landing beyond it would score as the one 0.4 m
+    # short; along the path it is the best.
+    assert int(np.argmax(reward)) == 1
+    # Uncertain landings: the distance off the path in root mean square, the progress its
+    # mean.
+    np.testing.assert_allclose(progress_reward(path, x, y, [0.6, 0.0], 2.0,
+                                               np.array([0.04, 0.04, 0.04, 0.09])),
+                               [-0.8, 0.0, -0.4, -0.4 - 2.0 * np.sqrt(0.18)])
+    with pytest.raises(ValueError, match='off_weight'):
+        progress_reward(path, x, y, [0.6, 0.0], -1.0)
+
+
+def test_progress_from_poses_is_the_progress_of_each_landing():
+    """The (K, M) rank-2 form gives what projecting each of the K M landings gives."""
+    from sela_ros.core.learning.acquisition import progress_reward, progress_reward_from
+
+    rng = np.random.default_rng(0)
+    ends, g = rng.normal(size=(4, 3)), 0.3 * rng.normal(size=(3, 50))
+    c, s = np.cos(ends[:, 2]), np.sin(ends[:, 2])
+    x = ends[:, :1] + c[:, None] * g[0] - s[:, None] * g[1]
+    y = ends[:, 1:2] + s[:, None] * g[0] + c[:, None] * g[1]
+    var = 0.01 * rng.random((4, 50))
+    for path in ([[0.0, 0.0], [0.6, 0.6], [2.0, 2.0]], [[0.0, 0.0], [0.6, 0.0], [1.0, 2.0],
+                                                       [1.0, 2.0], [-1.0, 3.0]], [[1.0, 1.0]]):
+        path = np.array(path)
+        expected = progress_reward(path, x.reshape(-1), y.reshape(-1), [0.6, 0.6], 1.5,
+                                   var.reshape(-1)).reshape(4, 50)
+        np.testing.assert_allclose(progress_reward_from(path, ends, c, s, g, [0.6, 0.6], 1.5,
+                                                        var), expected, atol=1e-12)
+
+
+def test_path_from_cuts_the_track_ahead_of_a_point():
+    from sela_ros.core.learning.acquisition import path_from
+
+    path = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0]])
+    np.testing.assert_allclose(path_from(path, [0.5, 0.1], 1.0), [[0.5, 0.0], [1.0, 0.0],
+                                                                  [1.0, 0.5]])
+    np.testing.assert_allclose(path_from(path, [0.5, 0.1], 10.0), [[0.5, 0.0], [1.0, 0.0],
+                                                                   [1.0, 2.0]])
+    np.testing.assert_allclose(path_from(path, [3.0, 3.0], 1.0), [[1.0, 2.0], [1.0, 2.0]])

@@ -47,7 +47,7 @@ def test_config_dotted_names():
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
                                 'gp.mean.affine',
                                 'acquisition.ucb.alpha', 'acquisition.caution',
-                                'planner.lookahead', 'goal.eps',
+                                'acquisition.progress', 'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
                                 'priors.max.misfit', 'priors.max.misfit.reproduced',
                                 'priors.weights.sd', 'planner.horizon'}
@@ -77,7 +77,8 @@ def test_auto_and_none_are_words_not_numbers():
     assert SELAConfig.from_dict({'priors.weights.sd': 0.0}).priors_weights_sd is None
     # 0 is no kernel length, no horizon, no cap: the words say what 0 cannot.
     for field in ('gp_kernel_sigma', 'fall_kernel_sigma', 'priors_max_misfit',
-                  'priors_weights_sd', 'acquisition_caution', 'gp_mean_affine'):
+                  'priors_weights_sd', 'acquisition_caution', 'gp_mean_affine',
+                  'acquisition_progress'):
         with pytest.raises(ValueError, match='must be'):
             SELAConfig(**{field: 0.0})
     with pytest.raises(ValueError, match='fall.kernel.sigma'):
@@ -367,3 +368,52 @@ def test_on_the_step_to_the_goal_caution_never_stays_put():
                                  landing_variance(sigma ** 2, error))
     assert int(np.argmin(expected)) == 0  # by expected distance alone it would stay put
     assert sela.ask(np.zeros(2)).index in (1, 2, 3, 4)
+
+
+def _three_gaits(progress, goal=(2.0, 0.0)):
+    """Three gaits on the map: 0.25 m east, 1.2 m east, and 0.45 m east with 0.3 m north."""
+    return SELA(np.array([[0.0], [0.5], [1.0]]),
+                np.array([[0.25, 0.0], [1.2, 0.0], [0.45, 0.3]]), PointMotion(), goal=goal,
+                config={'acquisition.ucb.alpha': 0.0, 'acquisition.caution': 'none',
+                        'gp.mean.affine': 'none', 'acquisition.progress': progress})
+
+
+def test_progress_takes_the_gait_that_goes_furthest_along_the_path():
+    # By the distance to the waypoint (0.6 m east) the gait that goes 0.45 m at a slant is
+    # the best (0.34 m from it), and the one that lands 0.6 m beyond it the worst.
+    assert _three_gaits('none').ask(np.zeros(2)).index == 2
+    # Along the path to the goal the long step is the best, and the slant (0.45 m along,
+    # 0.3 m off) is worth less than the short straight step when being off counts double.
+    assert _three_gaits(1.0).ask(np.zeros(2)).index == 1
+    decision = _three_gaits(2.0).ask(np.zeros(2))
+    assert decision.index == 1 and decision.reward == pytest.approx(0.6)
+    # The node's way, the waypoint given (the path runs on from it to the goal): the same.
+    assert _three_gaits(1.0).ask(np.zeros(2), waypoint=[0.6, 0.0]).index == 1
+    # Near the goal a landing beyond it is as far off as its distance to the goal.
+    near = _three_gaits(1.0, goal=(0.3, 0.0)).ask(np.zeros(2))
+    assert near.index == 0
+
+
+def test_progress_is_a_parameter_with_a_word_for_off():
+    assert SELAConfig().acquisition_progress is None
+    assert SELAConfig().to_dict()['acquisition.progress'] == 'none'
+    assert SELAConfig.from_dict({'acquisition.progress': 1.5}).acquisition_progress == 1.5
+    with pytest.raises(ValueError, match='acquisition.progress'):
+        SELAConfig.from_dict({'acquisition.progress': -1.0})
+
+
+def test_progress_two_steps_ahead_leaves_the_robot_facing_the_path():
+    """Two steps ahead, the first gait is the one after which the best next gait goes
+    furthest along the path: not the longest step if it turns the robot away."""
+    # Gaits (dx, dy, dyaw): 0.45 m ahead turning 1.5 rad, 0.3 m and 0.35 m straight ahead.
+    gr = np.array([[0.45, 0.0, 1.5], [0.3, 0.0, 0.0], [0.35, 0.0, 0.0]])
+
+    def choice(horizon):
+        sela = SELA(np.array([[0.0], [0.5], [1.0]]), gr, SE2Motion(), goal=(3.0, 0.0),
+                    config={'acquisition.ucb.alpha': 0.0, 'acquisition.caution': 'none',
+                            'gp.mean.affine': 'none', 'acquisition.progress': 1.0,
+                            'planner.horizon': horizon})
+        return sela.ask(np.zeros(3), waypoint=[0.6, 0.0], next_waypoint_xy=[1.2, 0.0]).index
+
+    assert choice(1) == 0  # one step: the furthest along
+    assert choice(2) == 2  # two: the longer straight step, then the long one
