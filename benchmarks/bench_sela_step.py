@@ -67,14 +67,14 @@ def library_like(priors, count, seed=0):
 
 
 def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
-                  caution=None, mean_affine=None):
+                  caution=None, mean_affine=None, mean_descriptor=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
     step is timed with a damage prior in use; ``mixed``: of two of them added up, from a
     standing start first, so the mixture of the tables is in use) and two steps ahead;
-    ``caution``: ``acquisition.caution``, ``mean_affine``: ``gp.mean.affine`` (None: the
-    defaults). The last item returned says
+    ``caution``: ``acquisition.caution``, ``mean_affine``: ``gp.mean.affine``,
+    ``mean_descriptor``: ``gp.mean.descriptor`` (None: the defaults). The last item returned says
     whether caution was on in the steps timed."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.mission import make_sela
@@ -98,6 +98,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         config['acquisition.caution'] = caution
     if mean_affine is not None:
         config['gp.mean.affine'] = mean_affine
+    if mean_descriptor is not None:
+        config['gp.mean.descriptor'] = mean_descriptor
     sela = make_sela(archive, config or None, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
@@ -119,6 +121,24 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
             int(sela.config.planner_horizon), cautious)
 
 
+def interleaved(args):
+    """The step on the shipped map, the tables mixed, timed alternately with the defaults
+    and with ``--caution``, ``--mean-affine``, ``--mean-descriptor``: the same machine load
+    for both."""
+    runs = {'defaults': [], 'given': []}
+    for k in range(args.interleave):
+        for name, given in (('defaults', {}), ('given', {
+                'caution': args.caution, 'mean_affine': args.mean_affine,
+                'mean_descriptor': args.mean_descriptor})):
+            t, _, _, prior, _, _ = bench_shipped(mixed=True, seed=k, **given)
+            runs[name].append(t)
+            print(f'  round {k + 1}/{args.interleave}, {name}: median {1e3 * t:.2f} ms '
+                  f'(prior in use: {prior})', flush=True)
+    for name, times in runs.items():
+        print(f'{name}: median of the rounds\' medians {1e3 * np.median(times):.2f} ms, '
+              f'min {1e3 * np.min(times):.2f} ms over {len(times)} rounds')
+
+
 def _on(cautious):
     return ', caution on' if cautious else ''
 
@@ -138,7 +158,17 @@ def main():
     parser.add_argument('--mean-affine', default=None,
                         help="gp.mean.affine for the steps on the shipped map, a number or "
                              "none (default: the config's)")
+    parser.add_argument('--mean-descriptor', default=None,
+                        help="gp.mean.descriptor for the steps on the shipped map, a number or "
+                             "none (default: the config's)")
+    parser.add_argument('--interleave', type=int, default=0,
+                        help='only time the step on the shipped map (tables mixed) this many '
+                             'times with the defaults and with the settings given, '
+                             'alternately, and print both medians')
     args = parser.parse_args()
+    if args.interleave:
+        interleaved(args)
+        return
     print('SELA step (ask + tell + fall model, 8-D descriptors, 2 GR dims):')
     for m in (1e3, 1e4, 2e4, 1e5, 1e6):
         if m > args.max_candidates:

@@ -11,6 +11,9 @@ fallen robot righted where it lies. Methods:
 * ``caution``: the same, with ``acquisition.caution`` 0.15 m: the node's defaults (every
   other method runs with caution none, the paper's rule); ``caution-0.1``, ``caution-0.2``,
   ``caution-0.3``: other settings of it;
+* ``affine-<sd>``: ``caution`` with the affine map of the prior mean (``gp.mean.affine``);
+  ``affine-0.5-descriptor-<sd>``: its scale linear in the gait's descriptor too
+  (``gp.mean.descriptor``);
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -94,7 +97,12 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            **{f'affine-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                               'gp.mean.affine': v} for v in (0.25, 0.5, 1.0)},
            **{f'affine-{v}-nocaution': {'priors.weights.sd': 1.0, 'gp.mean.affine': v}
-              for v in (0.5,)}}
+              for v in (0.5,)},
+           **{f'affine-0.5-descriptor-{v}': {'priors.weights.sd': 1.0,
+                                             'acquisition.caution': 0.15,
+                                             'gp.mean.affine': 0.5,
+                                             'gp.mean.descriptor': v}
+              for v in (0.5, 1.0, 2.0)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...").
@@ -228,7 +236,9 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               priors=priors_value, leave_out_own=leave_out_own, noise_seed=seed,
               weights_sd=settings.get('priors.weights.sd'),
               caution=settings.get('acquisition.caution', 'none'), prior_mean=prior_mean,
-              mean_affine=settings.get('gp.mean.affine', 'none'), trace=args.trace,
+              mean_affine=settings.get('gp.mean.affine', 'none'),
+              mean_affine_descriptor=settings.get('gp.mean.descriptor', 'none'),
+              trace=args.trace,
               **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (

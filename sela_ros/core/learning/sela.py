@@ -371,7 +371,8 @@ class SELA:
         table = self._prior_mean(selection)
         base = self._prior if table is None else table
         weights = self._affine_weights(base)
-        return table if weights is None else affine_mean.apply_affine(weights, base)
+        return table if weights is None else affine_mean.apply_affine(weights, base,
+                                                                      self._candidates)
 
     def _affine_weights(self, base):
         """The affine map of the prior mean ``base`` in use (:meth:`_fit_affine`), or None:
@@ -393,7 +394,9 @@ class SELA:
         keep = ~np.isin(idx, fall_idx[fallen]) if fallen.any() else np.ones(len(idx), bool)
         if not keep.any():
             return None
-        return affine_mean.fit_affine(base[idx[keep]], grs[keep], sd)
+        return affine_mean.fit_affine(base[idx[keep]], grs[keep], sd,
+                                      self._candidates[idx[keep]],
+                                      self.config.gp_mean_descriptor)
 
     def _prior_mean(self, selection):
         """The ``(M, k)`` prior mean ``selection`` stands for: the tables mixed, one table,
@@ -574,9 +577,10 @@ class SELA:
             predicted = mu_t[:, index]
         else:
             idx, _ = self.observations
-            rows = base[np.append(idx, index)]
+            gaits = np.append(idx, index)
+            rows = base[gaits]
             if weights is not None:
-                rows = affine_mean.apply_affine(weights, rows)
+                rows = affine_mean.apply_affine(weights, rows, self._candidates[gaits])
             predicted = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
         self._surprises.append(float(np.sum((observed[:2] - predicted[:2]) ** 2)))
 
@@ -589,8 +593,9 @@ class SELA:
         if weights is None:
             return
         idx, _ = self.observations
-        rows = base[np.append(idx, index)]
-        mapped = affine_mean.apply_affine(weights, rows)
+        gaits = np.append(idx, index)
+        rows = base[gaits]
+        mapped = affine_mean.apply_affine(weights, rows, self._candidates[gaits])
         plain = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
         fitted = self._gp.mean_at_with_prior(index, mapped[:-1], mapped[-1])
         self._affine_score += prior_mixture.step_log_likelihood(observed - fitted, standing) \
