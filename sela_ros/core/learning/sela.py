@@ -370,14 +370,16 @@ class SELA:
         map as it is (the GPs' own)."""
         table = self._prior_mean(selection)
         base = self._prior if table is None else table
-        weights = self._affine_weights(base)
+        weights = self._affine_weights(base, selection)
         return table if weights is None else affine_mean.apply_affine(weights, base,
                                                                       self._candidates)
 
-    def _affine_weights(self, base):
+    def _affine_weights(self, base, selection):
         """The affine map of the prior mean ``base`` in use (:meth:`_fit_affine`), or None:
-        off, or it has not predicted the steps better than the prior mean as it is."""
-        if self._affine_score <= 0.0:
+        off, it has not predicted the steps better than the prior mean as it is, or
+        ``selection`` is a table that reproduced the robot's standing starts (its own damage,
+        foreseen: what is left of the table's error is the GPs' to learn, gait by gait)."""
+        if self._affine_score <= 0.0 or selection.reproduced:
             return None
         return self._fit_affine(base)
 
@@ -570,9 +572,10 @@ class SELA:
         mu_t, var = self._gp.query_columns()
         if var[index] <= acquisition.UNTRIED_VARIANCE:
             return
-        table = self._prior_mean(self.select_prior())
+        selection = self.select_prior()
+        table = self._prior_mean(selection)
         base = self._prior if table is None else table
-        weights = self._affine_weights(base)
+        weights = self._affine_weights(base, selection)
         if table is None and weights is None:
             predicted = mu_t[:, index]
         else:

@@ -174,3 +174,33 @@ def test_sela_slows_the_untried_gaits_that_lean_on_the_lost_leg(descriptor_sd):
         return np.abs(mu[rows, 0]).sum() / np.abs(prior[rows, 0]).sum()
 
     assert (ratio(leaning) < ratio(free) - 0.3) == (descriptor_sd is not None)
+
+
+def test_a_table_that_reproduced_the_standing_starts_is_used_without_the_map():
+    """The robot's own damage foreseen: its table reproduced every step from a standing
+    start. Even where the map would predict the steps a little better (a robot 10 % slower
+    than the table), far gaits keep the table's predictions: what is left of its error is
+    the GPs' to learn gait by gait."""
+    from sela_ros.core.learning import DamagePriors
+
+    rng = np.random.default_rng(10)
+    m = 300
+    candidates = rng.random((m, 4))
+    intact = _map(rng, m)
+    table = intact * [0.5, 0.5, 1.0]
+    priors = DamagePriors(('remove:front_left',), table[None], np.zeros((1, m), bool), 'x')
+    sela = SELA(candidates, intact, SE2Motion(), goal=[2.0, 0.0], priors=priors,
+                config=SELAConfig(gp_kernel_sigma=0.05, gp_mean_affine=0.5,
+                                  priors_weights_sd=None))
+    tried = np.argsort(-np.abs(table[:, 0]))[:10]
+    for i in tried:
+        sela.tell(int(i), table[i] * [0.9, 0.9, 1.0], standing_start=True)
+    selection = sela.select_prior()
+    assert selection.name == 'remove:front_left' and selection.reproduced
+    assert sela._affine_score > 0.0
+    assert sela._fit_affine(table)[0, 0] < 0.97  # the map would slow every gait
+    mu, _ = sela.predict()
+    far = np.linalg.norm(candidates[:, None] - candidates[tried][None], axis=2).min(axis=1) \
+        > 0.3
+    assert far.any()
+    np.testing.assert_allclose(mu[far], table[far], atol=1e-6)
