@@ -117,8 +117,11 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         times.append(time.perf_counter() - t0)
     limit = sela.config.acquisition_caution
     cautious = limit is not None and learnt_error(sela.state_dict()['surprises']) >= limit
+    # Whether the affine map of the prior mean was in use in the steps timed (gp.mean.affine
+    # is used only while it predicts the steps better than the prior mean as it is).
+    mapped = sela.config.gp_mean_affine is not None and sela._affine_score > 0.0
     return (float(np.median(times)), float(np.min(times)), len(archive), d.prior,
-            int(sela.config.planner_horizon), cautious)
+            int(sela.config.planner_horizon), cautious, mapped)
 
 
 def interleaved(args):
@@ -130,10 +133,11 @@ def interleaved(args):
         for name, given in (('defaults', {}), ('given', {
                 'caution': args.caution, 'mean_affine': args.mean_affine,
                 'mean_descriptor': args.mean_descriptor})):
-            t, _, _, prior, _, _ = bench_shipped(mixed=True, seed=k, **given)
+            t, _, _, prior, _, cautious, mapped = bench_shipped(mixed=True, seed=k, **given)
             runs[name].append(t)
             print(f'  round {k + 1}/{args.interleave}, {name}: median {1e3 * t:.2f} ms '
-                  f'(prior in use: {prior})', flush=True)
+                  f'(prior in use: {prior}{", affine map in use" if mapped else ""})'
+                  f'{_on(cautious)}', flush=True)
     for name, times in runs.items():
         print(f'{name}: median of the rounds\' medians {1e3 * np.median(times):.2f} ms, '
               f'min {1e3 * np.min(times):.2f} ms over {len(times)} rounds')
@@ -177,12 +181,12 @@ def main():
         t, t_min, n = bench_step(int(m), repeats=reps)
         print(f'  {int(m):>8d} candidates, {n - reps + 1:2d}-{n:2d} observations: median '
               f'{1e3 * t:8.2f} ms, min {1e3 * t_min:8.2f} ms')
-    t, t_min, gaits, prior, horizon, cautious = bench_shipped(caution=args.caution,
+    t, t_min, gaits, prior, horizon, cautious, _ = bench_shipped(caution=args.caution,
                                                                   mean_affine=args.mean_affine)
     print(f'  shipped 8-D map ({gaits} gaits, SE(2), fall GP + support model, damage prior '
           f'in use: {prior}, {horizon} steps ahead), 20-34 observations: median '
           f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms){_on(cautious)}')
-    t, t_min, gaits, prior, horizon, cautious = bench_shipped(mixed=True, caution=args.caution,
+    t, t_min, gaits, prior, horizon, cautious, _ = bench_shipped(mixed=True, caution=args.caution,
                                                                   mean_affine=args.mean_affine)
     print(f'  the same, the tables mixed on a damage two of them add up to (prior in use: '
           f'{prior}): median '
@@ -192,7 +196,7 @@ def main():
         if not priors:
             continue
         for mixed in (False, True):
-            t, t_min, gaits, prior, horizon, cautious = bench_shipped(
+            t, t_min, gaits, prior, horizon, cautious, _ = bench_shipped(
                 mixed=mixed, priors=priors, caution=args.caution, mean_affine=args.mean_affine)
             print(f'  the same with {label}, {"mixed" if mixed else "one table"} (prior in '
                   f'use: {prior}): median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms '
