@@ -32,6 +32,9 @@ def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
 
 #: With two steps: how many of the best first gaits (by the one-step score) are looked at.
 TWO_STEP_CANDIDATES = 40
+#: How much better (log-likelihood ratio) the affine map of the prior mean must have
+#: predicted the steps, each before it was learnt, than the prior mean as it is, to be used.
+AFFINE_MIN_SCORE = 0.0
 
 
 @dataclass
@@ -379,7 +382,7 @@ class SELA:
         off, it has not predicted the steps better than the prior mean as it is, or
         ``selection`` is a table that reproduced the robot's standing starts (its own damage,
         foreseen: what is left of the table's error is the GPs' to learn, gait by gait)."""
-        if self._affine_score <= 0.0 or selection.reproduced:
+        if self._affine_score <= AFFINE_MIN_SCORE or selection.reproduced:
             return None
         return self._fit_affine(base)
 
