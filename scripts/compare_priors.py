@@ -105,8 +105,10 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
               for v in (0.5, 1.0, 2.0)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
-#: (commit "learning: an affine map of the prior mean learnt from the steps; ...").
-REPORTED_ONLY = ('affine-0.5-ungated',)
+#: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
+#: ``affine-0.5-descriptor-1.0-margin-3``: ``affine-0.5-descriptor-1.0`` with
+#: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command).
+REPORTED_ONLY = ('affine-0.5-ungated', 'affine-0.5-descriptor-1.0-margin-3')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
