@@ -67,14 +67,15 @@ def library_like(priors, count, seed=0):
 
 
 def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
-                  caution=None, mean_affine=None, progress=None):
+                  caution=None, mean_affine=None, progress=None, mean_descriptor=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
     step is timed with a damage prior in use; ``mixed``: of two of them added up, from a
     standing start first, so the mixture of the tables is in use) and two steps ahead;
     ``caution``: ``acquisition.caution``, ``mean_affine``: ``gp.mean.affine``,
-    ``progress``: ``acquisition.progress`` (None: the defaults). The last item returned says
+    ``progress``: ``acquisition.progress``; ``mean_descriptor``: ``gp.mean.descriptor`` (None:
+    the defaults). The last item returned says
     whether caution was on in the steps timed."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.mission import make_sela
@@ -100,6 +101,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         config['gp.mean.affine'] = mean_affine
     if progress is not None:
         config['acquisition.progress'] = progress
+    if mean_descriptor is not None:
+        config['gp.mean.descriptor'] = mean_descriptor
     sela = make_sela(archive, config or None, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
@@ -117,8 +120,30 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         times.append(time.perf_counter() - t0)
     limit = sela.config.acquisition_caution
     cautious = limit is not None and learnt_error(sela.state_dict()['surprises']) >= limit
+    # Whether the affine map of the prior mean was in use in the steps timed (gp.mean.affine
+    # is used only while it predicts the steps better than the prior mean as it is).
+    mapped = sela.config.gp_mean_affine is not None and sela._affine_score > 0.0
     return (float(np.median(times)), float(np.min(times)), len(archive), d.prior,
-            int(sela.config.planner_horizon), cautious)
+            int(sela.config.planner_horizon), cautious, mapped)
+
+
+def interleaved(args):
+    """The step on the shipped map, the tables mixed, timed alternately with the defaults
+    and with ``--caution``, ``--mean-affine``, ``--mean-descriptor``: the same machine load
+    for both."""
+    runs = {'defaults': [], 'given': []}
+    for k in range(args.interleave):
+        for name, given in (('defaults', {}), ('given', {
+                'caution': args.caution, 'mean_affine': args.mean_affine,
+                'mean_descriptor': args.mean_descriptor})):
+            t, _, _, prior, _, cautious, mapped = bench_shipped(mixed=True, seed=k, **given)
+            runs[name].append(t)
+            print(f'  round {k + 1}/{args.interleave}, {name}: median {1e3 * t:.2f} ms '
+                  f'(prior in use: {prior}{", affine map in use" if mapped else ""})'
+                  f'{_on(cautious)}', flush=True)
+    for name, times in runs.items():
+        print(f'{name}: median of the rounds\' medians {1e3 * np.median(times):.2f} ms, '
+              f'min {1e3 * np.min(times):.2f} ms over {len(times)} rounds')
 
 
 def interleave_progress(args):
@@ -165,9 +190,18 @@ def main():
                         help='only time the step on the shipped map with acquisition.progress '
                              'none and this weight, alternately (--rounds times each)')
     parser.add_argument('--rounds', type=int, default=5)
+    parser.add_argument('--mean-descriptor', default=None,
+                        help="gp.mean.descriptor for the steps on the shipped map, a number or "
+                             "none (default: the config's)")
+    parser.add_argument('--interleave', type=int, default=0,
+                        help='only time the step on the shipped map (tables mixed) this many '
+                             'times with the defaults and with the settings given, '
+                             'alternately, and print both medians')
     args = parser.parse_args()
     if args.interleave_progress is not None:
         interleave_progress(args)
+    elif args.interleave:
+        interleaved(args)
         return
     print('SELA step (ask + tell + fall model, 8-D descriptors, 2 GR dims):')
     for m in (1e3, 1e4, 2e4, 1e5, 1e6):
@@ -177,12 +211,12 @@ def main():
         t, t_min, n = bench_step(int(m), repeats=reps)
         print(f'  {int(m):>8d} candidates, {n - reps + 1:2d}-{n:2d} observations: median '
               f'{1e3 * t:8.2f} ms, min {1e3 * t_min:8.2f} ms')
-    t, t_min, gaits, prior, horizon, cautious = bench_shipped(caution=args.caution,
+    t, t_min, gaits, prior, horizon, cautious, _ = bench_shipped(caution=args.caution,
                                                                   mean_affine=args.mean_affine)
     print(f'  shipped 8-D map ({gaits} gaits, SE(2), fall GP + support model, damage prior '
           f'in use: {prior}, {horizon} steps ahead), 20-34 observations: median '
           f'{1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms){_on(cautious)}')
-    t, t_min, gaits, prior, horizon, cautious = bench_shipped(mixed=True, caution=args.caution,
+    t, t_min, gaits, prior, horizon, cautious, _ = bench_shipped(mixed=True, caution=args.caution,
                                                                   mean_affine=args.mean_affine)
     print(f'  the same, the tables mixed on a damage two of them add up to (prior in use: '
           f'{prior}): median '
@@ -192,7 +226,7 @@ def main():
         if not priors:
             continue
         for mixed in (False, True):
-            t, t_min, gaits, prior, horizon, cautious = bench_shipped(
+            t, t_min, gaits, prior, horizon, cautious, _ = bench_shipped(
                 mixed=mixed, priors=priors, caution=args.caution, mean_affine=args.mean_affine)
             print(f'  the same with {label}, {"mixed" if mixed else "one table"} (prior in '
                   f'use: {prior}): median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms '

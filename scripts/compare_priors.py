@@ -15,6 +15,9 @@ fallen robot righted where it lies. Methods:
   the path (``acquisition.progress``, the weight of the distance off the path);
   ``affine-0.5-progress-1.0``, ``affine-0.5-progress-2.0``: the same with ``gp.mean.affine``
   0.5; ``affine-0.5-progress-1.0-h1``: that with one step looked ahead (``planner.horizon`` 1);
+* ``affine-<sd>``: ``caution`` with the affine map of the prior mean (``gp.mean.affine``);
+  ``affine-0.5-descriptor-<sd>``: its scale linear in the gait's descriptor too
+  (``gp.mean.descriptor``);
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -110,15 +113,22 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
                                               'acquisition.caution': 0.15,
                                               'gp.mean.affine': 0.5, 'acquisition.progress': w,
                                               'planner.horizon': 1}
-              for w in (1.0,)}}
+              for w in (1.0,)},
+           **{f'affine-0.5-descriptor-{v}': {'priors.weights.sd': 1.0,
+                                             'acquisition.caution': 0.15,
+                                             'gp.mean.affine': 0.5,
+                                             'gp.mean.descriptor': v}
+              for v in (0.5, 1.0, 2.0)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
 #: ``*-progress-1.0*-lcb``: ``acquisition.progress`` 1 with the progress along the path one
 #: standard deviation of the landing short of its mean (commit "learning: progress along the
-#: path counted one standard deviation short when caution is on").
+#: path counted one standard deviation short when caution is on");
+#: ``affine-0.5-descriptor-1.0-margin-3``: ``affine-0.5-descriptor-1.0`` with
+#: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command).
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
-                 'affine-0.5-progress-1.0-h1-lcb')
+                 'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -250,6 +260,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               caution=settings.get('acquisition.caution', 'none'), prior_mean=prior_mean,
               mean_affine=settings.get('gp.mean.affine', 'none'),
               progress=settings.get('acquisition.progress', 'none'),
+              mean_affine_descriptor=settings.get('gp.mean.descriptor', 'none'),
               horizon=settings.get('planner.horizon'), trace=args.trace,
               **extra)
     out = run_method(job)

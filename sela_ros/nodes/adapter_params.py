@@ -20,6 +20,12 @@ PARAMETERS = (
          "the damage does to every gait), centred on the identity; none = the prior mean as "
          "it is (the paper's)", low=0.0, high=100.0, kind='double', word=NONE,
          read_only=True),
+    Spec('gp.mean.descriptor', NONE if SELAConfig.gp_mean_descriptor is None
+         else SELAConfig.gp_mean_descriptor, 'prior standard deviation of the terms '
+         "of that affine map's scale linear in the gait's descriptor (a leg lost slows the "
+         'gaits that lean on it most), centred on zero; used with gp.mean.affine; none = one '
+         'scale for the whole map', low=0.0, high=100.0, kind='double', word=NONE,
+         read_only=True),
     Spec('acquisition.ucb.alpha', 0.05, 'UCB exploration weight', low=0.0, high=100.0,
          read_only=True),
     Spec('acquisition.caution', SELAConfig.acquisition_caution, 'once untried gaits land '
@@ -112,8 +118,8 @@ PARAMETERS = (
          "sim.solver_iterations the archive must match ('' on a real robot: no check)",
          read_only=True),
 )
-SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'gp.mean.affine', 'acquisition.ucb.alpha',
-             'acquisition.caution', 'acquisition.progress',
+SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'gp.mean.affine', 'gp.mean.descriptor',
+             'acquisition.ucb.alpha', 'acquisition.caution', 'acquisition.progress',
              'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
              'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',

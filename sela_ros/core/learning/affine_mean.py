@@ -15,6 +15,13 @@ each output's noise the chaining error, so that a few steps move it only as far 
 the GP then models what is left. Planar outputs share their features ``(dx, dy, 1)``; the
 turn takes ``(dyaw, dx, 1)`` (a robot that drifts as it walks forward). The fit is a 3x3
 solve per output: O(N) per step, then O(M) to apply it to the whole map.
+
+With ``descriptor_sd``, the scale of each output also varies with the gait: ``a11`` (dx),
+``a22`` (dy) and ``e`` (the drift of the turn) each gain a term linear in the gait's
+normalised descriptor, centred on the middle of the map (``u . (d - 0.5)``), its weights
+``~ N(0, descriptor_sd^2)``. On the 8-D map the descriptor holds each leg's duty factor: a
+robot that lost a leg slows the gaits that lean on that leg more than the others, which one
+scale for the whole map cannot say. A solve of ``3 + d`` unknowns per output.
 """
 from __future__ import annotations
 
@@ -29,28 +36,46 @@ NOISE_SD = np.array([0.1, 0.1, 0.25])
 DEFAULT_SCALE_SD = 0.5
 
 
-def _features(prior, output):
-    """``(N, 3)`` features of ``output`` from the prior's predictions ``(N, k)``, and the
-    prior mean of their weights."""
+def _features(prior, output, descriptors=None):
+    """``(N, 3 [+ d])`` features of ``output`` from the prior's predictions ``(N, k)`` (and
+    the gaits' normalised descriptors ``(N, d)``), and the prior mean of their weights."""
     ones = np.ones(len(prior))
     if output < 2:
         centre = np.zeros(3)
         centre[output] = 1.0
-        return np.column_stack([prior[:, 0], prior[:, 1], ones]), centre
-    return np.column_stack([prior[:, 2], prior[:, 0], ones]), np.array([1.0, 0.0, 0.0])
+        design = np.column_stack([prior[:, 0], prior[:, 1], ones])
+    else:
+        design, centre = np.column_stack([prior[:, 2], prior[:, 0], ones]), np.array(
+            [1.0, 0.0, 0.0])
+    if descriptors is None:
+        return design, centre
+    # The scale term the descriptor modulates: dx for dx, dy for dy, the drift (dx) for dyaw.
+    scaled = prior[:, 1 if output == 1 else 0]
+    varying = scaled[:, None] * (np.asarray(descriptors, dtype=float) - 0.5)
+    return np.column_stack([design, varying]), np.concatenate(
+        [centre, np.zeros(varying.shape[1])])
 
 
-def fit_affine(prior_observed, observed, scale_sd=DEFAULT_SCALE_SD) -> np.ndarray:
-    """The posterior mean weights ``(k, 3)`` of the affine map, given the prior's
+def fit_affine(prior_observed, observed, scale_sd=DEFAULT_SCALE_SD, descriptors=None,
+               descriptor_sd=None) -> np.ndarray:
+    """The posterior mean weights ``(k, 3 [+ d])`` of the affine map, given the prior's
     predictions ``(N, k)`` at the gaits run and their outcomes ``(N, k)`` (k is 2 or 3:
-    dx, dy[, dyaw])."""
+    dx, dy[, dyaw]); with ``descriptor_sd``, the gaits' normalised descriptors ``(N, d)``
+    make its scale vary across the map."""
     prior_observed = np.asarray(prior_observed, dtype=float)
     observed = np.asarray(observed, dtype=float)
     k = prior_observed.shape[1]
-    weights = np.zeros((k, 3))
+    if descriptor_sd is None:
+        descriptors = None
+    elif descriptors is None:
+        raise ValueError('descriptor_sd needs the descriptors of the gaits run')
+    extra = 0 if descriptors is None else np.asarray(descriptors).shape[1]
+    weights = np.zeros((k, 3 + extra))
     for output in range(k):
-        design, centre = _features(prior_observed, output)
-        precision = np.diag(1.0 / np.array([scale_sd, scale_sd, OFFSET_SD[output]]) ** 2)
+        design, centre = _features(prior_observed, output, descriptors)
+        sd = np.concatenate([[scale_sd, scale_sd, OFFSET_SD[output]],
+                             np.full(extra, descriptor_sd or 1.0)])
+        precision = np.diag(1.0 / sd ** 2)
         noise = NOISE_SD[output] ** 2
         a = precision + design.T @ design / noise
         b = precision @ centre + design.T @ observed[:, output] / noise
@@ -58,10 +83,19 @@ def fit_affine(prior_observed, observed, scale_sd=DEFAULT_SCALE_SD) -> np.ndarra
     return weights
 
 
-def apply_affine(weights, prior) -> np.ndarray:
+def apply_affine(weights, prior, descriptors=None) -> np.ndarray:
     """The map ``weights`` (:func:`fit_affine`) applied to every gait's prediction
-    ``(M, k)``; returns ``(M, k)``."""
+    ``(M, k)`` (and, for a map fitted with descriptors, the gaits' normalised descriptors
+    ``(M, d)``); returns ``(M, k)``."""
     prior = np.asarray(prior, dtype=float)
+    weights = np.asarray(weights, dtype=float)
+    extra = weights.shape[1] - 3
+    if extra and (descriptors is None or np.shape(descriptors)[1] != extra):
+        raise ValueError(f'a map fitted with {extra} descriptor dimensions needs the '
+                         'descriptors of the gaits it is applied to')
+    if extra:
+        # (M, k) the descriptor's part of each output's scale: one matrix product.
+        modulation = (np.asarray(descriptors, dtype=float) - 0.5) @ weights[:, 3:].T
     out = np.empty_like(prior)
     for output in range(prior.shape[1]):
         w = weights[output]
@@ -69,4 +103,6 @@ def apply_affine(weights, prior) -> np.ndarray:
             out[:, output] = w[0] * prior[:, 0] + w[1] * prior[:, 1] + w[2]
         else:
             out[:, output] = w[0] * prior[:, 2] + w[1] * prior[:, 0] + w[2]
+        if extra:
+            out[:, output] += modulation[:, output] * prior[:, 1 if output == 1 else 0]
     return out

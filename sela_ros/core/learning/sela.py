@@ -32,6 +32,9 @@ def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
 
 #: With two steps: how many of the best first gaits (by the one-step score) are looked at.
 TWO_STEP_CANDIDATES = 40
+#: How much better (log-likelihood ratio) the affine map of the prior mean must have
+#: predicted the steps, each before it was learnt, than the prior mean as it is, to be used.
+AFFINE_MIN_SCORE = 0.0
 
 
 @dataclass
@@ -372,13 +375,16 @@ class SELA:
         map as it is (the GPs' own)."""
         table = self._prior_mean(selection)
         base = self._prior if table is None else table
-        weights = self._affine_weights(base)
-        return table if weights is None else affine_mean.apply_affine(weights, base)
+        weights = self._affine_weights(base, selection)
+        return table if weights is None else affine_mean.apply_affine(weights, base,
+                                                                      self._candidates)
 
-    def _affine_weights(self, base):
+    def _affine_weights(self, base, selection):
         """The affine map of the prior mean ``base`` in use (:meth:`_fit_affine`), or None:
-        off, or it has not predicted the steps better than the prior mean as it is."""
-        if self._affine_score <= 0.0:
+        off, it has not predicted the steps better than the prior mean as it is, or
+        ``selection`` is a table that reproduced the robot's standing starts (its own damage,
+        foreseen: what is left of the table's error is the GPs' to learn, gait by gait)."""
+        if self._affine_score <= AFFINE_MIN_SCORE or selection.reproduced:
             return None
         return self._fit_affine(base)
 
@@ -395,7 +401,9 @@ class SELA:
         keep = ~np.isin(idx, fall_idx[fallen]) if fallen.any() else np.ones(len(idx), bool)
         if not keep.any():
             return None
-        return affine_mean.fit_affine(base[idx[keep]], grs[keep], sd)
+        return affine_mean.fit_affine(base[idx[keep]], grs[keep], sd,
+                                      self._candidates[idx[keep]],
+                                      self.config.gp_mean_descriptor)
 
     def _prior_mean(self, selection):
         """The ``(M, k)`` prior mean ``selection`` stands for: the tables mixed, one table,
@@ -610,16 +618,18 @@ class SELA:
         mu_t, var = self._gp.query_columns()
         if var[index] <= acquisition.UNTRIED_VARIANCE:
             return
-        table = self._prior_mean(self.select_prior())
+        selection = self.select_prior()
+        table = self._prior_mean(selection)
         base = self._prior if table is None else table
-        weights = self._affine_weights(base)
+        weights = self._affine_weights(base, selection)
         if table is None and weights is None:
             predicted = mu_t[:, index]
         else:
             idx, _ = self.observations
-            rows = base[np.append(idx, index)]
+            gaits = np.append(idx, index)
+            rows = base[gaits]
             if weights is not None:
-                rows = affine_mean.apply_affine(weights, rows)
+                rows = affine_mean.apply_affine(weights, rows, self._candidates[gaits])
             predicted = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
         self._surprises.append(float(np.sum((observed[:2] - predicted[:2]) ** 2)))
 
@@ -632,8 +642,9 @@ class SELA:
         if weights is None:
             return
         idx, _ = self.observations
-        rows = base[np.append(idx, index)]
-        mapped = affine_mean.apply_affine(weights, rows)
+        gaits = np.append(idx, index)
+        rows = base[gaits]
+        mapped = affine_mean.apply_affine(weights, rows, self._candidates[gaits])
         plain = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
         fitted = self._gp.mean_at_with_prior(index, mapped[:-1], mapped[-1])
         self._affine_score += prior_mixture.step_log_likelihood(observed - fitted, standing) \

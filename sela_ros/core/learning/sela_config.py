@@ -41,6 +41,11 @@ class SELAConfig:
     # mean learnt from the steps (sela_ros.core.learning.affine_mean: what the damage does to
     # every gait), centred on the identity; None (none): the prior mean as it is (the paper's).
     gp_mean_affine: float | None = None
+    # Prior standard deviation of the terms of that map's scale linear in the gait's
+    # normalised descriptor (affine_mean: on the 8-D map, a leg lost slows the gaits that lean
+    # on it most), centred on zero; None (none): one scale for the whole map. Used only with
+    # gp_mean_affine.
+    gp_mean_descriptor: float | None = None
     acquisition_ucb_alpha: float = acquisition.DEFAULT_ALPHA
     # m: once untried gaits have landed this far from their predictions (rms per axis, learnt
     # from the steps: acquisition.learnt_error), each gait is scored by its expected distance
@@ -122,7 +127,8 @@ AUTO = 'auto'
 NONE = 'none'
 #: ``{name: word}`` of the parameters a SELAConfig may hold as None.
 WORDS = {'fall.kernel.sigma': AUTO, 'priors.max.misfit': NONE, 'priors.weights.sd': NONE,
-         'acquisition.caution': NONE, 'gp.mean.affine': NONE, 'acquisition.progress': NONE}
+         'acquisition.caution': NONE, 'gp.mean.affine': NONE, 'acquisition.progress': NONE,
+         'gp.mean.descriptor': NONE}
 #: The parameters whose ``auto`` is the archive's (:func:`sela_ros.core.mission.archive_config`).
 ARCHIVE_AUTO = ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon')
 

@@ -101,3 +101,106 @@ def test_the_map_stays_off_while_the_prior_predicts_the_steps_as_well():
     far = np.flatnonzero(np.linalg.norm(candidates[:, None] - candidates[:6][None],
                                         axis=2).min(axis=1) > 0.4)
     np.testing.assert_allclose(mu[far], prior[far], atol=1e-6)
+
+
+def _lost_leg(rng, m=400, d=4):
+    """A map and descriptors in [0, 1]^d; the robot: gaits slowed in proportion to how much
+    they lean on descriptor dimension 1 (a leg's duty factor), unslowed where it is 0."""
+    prior = _map(rng, m)
+    descriptors = rng.random((m, d))
+    scale = 1.0 - 0.8 * descriptors[:, 1]
+    truth = np.column_stack([scale * prior[:, 0], scale * prior[:, 1], prior[:, 2]])
+    return prior, descriptors, truth
+
+
+def test_no_step_with_descriptors_is_the_identity():
+    prior, descriptors, _ = _lost_leg(np.random.default_rng(6))
+    weights = fit_affine(np.zeros((0, 3)), np.zeros((0, 3)), descriptors=np.zeros((0, 4)),
+                         descriptor_sd=1.0)
+    assert weights.shape == (3, 7)
+    np.testing.assert_allclose(apply_affine(weights, prior, descriptors), prior)
+
+
+def test_a_scale_that_varies_with_the_descriptor_finds_a_lost_leg():
+    """Gaits that lean on one leg slowed more than others: the map with descriptor terms
+    predicts gaits it never saw within the noise; one scale for all cannot."""
+    rng = np.random.default_rng(7)
+    prior, descriptors, truth = _lost_leg(rng)
+    seen = np.arange(60)
+    noisy = truth[seen] + rng.normal(0, [0.02, 0.02, 0.05], (60, 3))
+    varying = fit_affine(prior[seen], noisy, descriptors=descriptors[seen], descriptor_sd=1.0)
+    uniform = fit_affine(prior[seen], noisy)
+    unseen = np.arange(60, len(prior))
+    err_varying = np.abs(apply_affine(varying, prior, descriptors)[unseen, :2]
+                         - truth[unseen, :2]).mean()
+    err_uniform = np.abs(apply_affine(uniform, prior)[unseen, :2] - truth[unseen, :2]).mean()
+    assert err_varying < 0.02
+    assert err_uniform > 2 * err_varying
+    # The weight on the leg's dimension says the gaits leaning on it are slower.
+    assert varying[0, 3 + 1] < -0.5
+
+
+def test_descriptor_terms_need_the_descriptors():
+    prior, descriptors, truth = _lost_leg(np.random.default_rng(8), m=20)
+    with pytest.raises(ValueError, match='descriptors'):
+        fit_affine(prior, truth, descriptor_sd=1.0)
+    weights = fit_affine(prior, truth, descriptors=descriptors, descriptor_sd=1.0)
+    with pytest.raises(ValueError, match='descriptors'):
+        apply_affine(weights, prior)
+
+
+@pytest.mark.parametrize('descriptor_sd', [1.0, None])
+def test_sela_slows_the_untried_gaits_that_lean_on_the_lost_leg(descriptor_sd):
+    """After a dozen steps of a robot that lost what descriptor dimension 1 stands for,
+    SELA with gp.mean.descriptor predicts far, untried gaits that lean on it slower than
+    those that do not; with one scale it slows both alike."""
+    rng = np.random.default_rng(9)
+    m = 300
+    prior, candidates, truth = _lost_leg(rng, m)
+    sela = SELA(candidates, prior, SE2Motion(), goal=[2.0, 0.0],
+                config=SELAConfig(gp_kernel_sigma=0.05, gp_mean_affine=0.5,
+                                  gp_mean_descriptor=descriptor_sd))
+    tried = np.arange(12)
+    for i in tried:
+        sela.tell(int(i), truth[i])
+    assert sela._affine_score > 0.0
+    mu, _ = sela.predict()
+    far = np.linalg.norm(candidates[:, None] - candidates[tried][None], axis=2).min(axis=1) \
+        > 0.2
+    leaning, free = far & (candidates[:, 1] > 0.8), far & (candidates[:, 1] < 0.2)
+    assert leaning.any() and free.any()
+
+    def ratio(rows):
+        return np.abs(mu[rows, 0]).sum() / np.abs(prior[rows, 0]).sum()
+
+    assert (ratio(leaning) < ratio(free) - 0.3) == (descriptor_sd is not None)
+
+
+def test_a_table_that_reproduced_the_standing_starts_is_used_without_the_map():
+    """The robot's own damage foreseen: its table reproduced every step from a standing
+    start. Even where the map would predict the steps a little better (a robot 10 % slower
+    than the table), far gaits keep the table's predictions: what is left of its error is
+    the GPs' to learn gait by gait."""
+    from sela_ros.core.learning import DamagePriors
+
+    rng = np.random.default_rng(10)
+    m = 300
+    candidates = rng.random((m, 4))
+    intact = _map(rng, m)
+    table = intact * [0.5, 0.5, 1.0]
+    priors = DamagePriors(('remove:front_left',), table[None], np.zeros((1, m), bool), 'x')
+    sela = SELA(candidates, intact, SE2Motion(), goal=[2.0, 0.0], priors=priors,
+                config=SELAConfig(gp_kernel_sigma=0.05, gp_mean_affine=0.5,
+                                  priors_weights_sd=None))
+    tried = np.argsort(-np.abs(table[:, 0]))[:10]
+    for i in tried:
+        sela.tell(int(i), table[i] * [0.9, 0.9, 1.0], standing_start=True)
+    selection = sela.select_prior()
+    assert selection.name == 'remove:front_left' and selection.reproduced
+    assert sela._affine_score > 0.0
+    assert sela._fit_affine(table)[0, 0] < 0.97  # the map would slow every gait
+    mu, _ = sela.predict()
+    far = np.linalg.norm(candidates[:, None] - candidates[tried][None], axis=2).min(axis=1) \
+        > 0.3
+    assert far.any()
+    np.testing.assert_allclose(mu[far], table[far], atol=1e-6)
