@@ -104,7 +104,7 @@ def test_goals_from_rviz_and_from_a_latched_publisher_are_taken(stack):
 
 
 def test_the_readme_goal_command_reaches_planner_and_adapter_every_time(stack, ros_env):
-    """``ros2 topic pub -w 2 --once --keep-alive 1.0 /goal_pose ...`` (the README), as
+    """``ros2 topic pub -w 2 --once --keep-alive 5.0 /goal_pose ...`` (the README), as
     ros2cli does it: a new node each time, default QoS, wait for 2 matching subscriptions."""
     nodes, client = stack
     heard = Heard(client)
@@ -112,7 +112,7 @@ def test_the_readme_goal_command_reaches_planner_and_adapter_every_time(stack, r
     for i in range(tries):
         goal = (round(-0.05 + 0.01 * i, 3), 0.02)
         proc = subprocess.Popen([sys.executable, str(HERE / 'topic_pub.py'), '/goal_pose',
-                                 str(goal[0]), str(goal[1]), '2', '1.0'], env=ros_env,
+                                 str(goal[0]), str(goal[1]), '2', '5.0'], env=ros_env,
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         client.spin_until(lambda p=proc: p.poll() is not None, 90, 'the publisher to exit')
         assert proc.returncode == 0, proc.stdout.read()
