@@ -274,6 +274,10 @@ class AskedPlan:
     refused: str = None  # why there is no path
     following: np.ndarray = None  # the waypoint of the step after (planner.horizon 2)
     attempts: int = 1  # times asked
+    path: np.ndarray = None  # (n, 2) the planner's answer, its waypoints taken as the step starts
+
+    def answered(self):
+        return self.waypoint is not None or self.path is not None
 
 
 @dataclass
