@@ -134,9 +134,12 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: standard deviation of the landing short of its mean (commit "learning: progress along the
 #: path counted one standard deviation short when caution is on");
 #: ``affine-0.5-descriptor-1.0-margin-3``: ``affine-0.5-descriptor-1.0`` with
-#: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command).
+#: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command);
+#: ``*-reach-1.5-max-floor-0.3``: ``*-reach-1.5`` with the robot's reach the largest step
+#: shown (``reach.REACH_QUANTILE`` 1) and the nearest waypoint 0.3 m (``reach.REACH_FLOOR``).
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
-                 'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3')
+                 'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3',
+                 'reach-1.5-max-floor-0.3', 'affine-0.5-reach-1.5-max-floor-0.3')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to

@@ -62,4 +62,5 @@ def sela_lookahead(sela) -> float:
     indices, rewards = sela.observations
     fall_indices, fallen = sela.fall_risk.observations
     return reach_lookahead(standing_displacements(indices, rewards, fall_indices, fallen),
-                           config.planner_lookahead, config.planner_reach)
+                           config.planner_lookahead, config.planner_reach, floor=REACH_FLOOR,
+                           quantile=REACH_QUANTILE, min_steps=REACH_MIN_STEPS)
