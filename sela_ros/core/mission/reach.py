@@ -7,6 +7,10 @@ multiple of the robot's shown reach (:data:`REACH_QUANTILE` of the planar displa
 steps learnt that stayed up), bounded between :data:`REACH_FLOOR` and ``planner.lookahead``.
 Until :data:`REACH_MIN_STEPS` such steps are learnt (the intact map trusted, or a new
 adaptation) the waypoint stays ``planner.lookahead`` along the path.
+
+Off by default: on the pairs of removed legs it gets fewer runs home (with caution on, a
+waypoint within reach is about as near to a gait tried that barely moves as to an untried
+one predicted to land on it, and the gait tried wins; docs/learning_the_damage.md).
 """
 import numpy as np
 

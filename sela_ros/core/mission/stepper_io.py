@@ -37,7 +37,8 @@ class PoseObserved:
 @dataclass(frozen=True)
 class PlanReceived:
     """The planner's answer: the whole path to the goal (``path``, as ``nav_msgs/GetPlan``
-    gives it), from which the stepper takes the waypoints (``planner.lookahead`` along it);
+    gives it), from which the stepper takes the waypoints as the step starts
+    (``planner.lookahead`` along it, or :mod:`~sela_ros.core.mission.reach`'s);
     or, from a driver that only has one, the ``waypoint`` itself. Neither: no path
     (``reason`` says why)."""
 
