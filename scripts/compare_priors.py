@@ -18,6 +18,8 @@ fallen robot righted where it lies. Methods:
 * ``affine-<sd>``: ``caution`` with the affine map of the prior mean (``gp.mean.affine``);
   ``affine-0.5-descriptor-<sd>``: its scale linear in the gait's descriptor too
   (``gp.mean.descriptor``);
+* ``reach-<g>``: ``caution`` with the waypoint set at ``g`` times the reach the robot's steps
+  have shown (``planner.reach``); ``affine-0.5-reach-<g>``: the same with ``gp.mean.affine`` 0.5;
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -118,7 +120,13 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
                                              'acquisition.caution': 0.15,
                                              'gp.mean.affine': 0.5,
                                              'gp.mean.descriptor': v}
-              for v in (0.5, 1.0, 2.0)}}
+              for v in (0.5, 1.0, 2.0)},
+           **{f'reach-{g}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                             'gp.mean.affine': 'none', 'planner.reach': g}
+              for g in (1.0, 1.5, 2.0)},
+           **{f'affine-0.5-reach-{g}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                                        'gp.mean.affine': 0.5, 'planner.reach': g}
+              for g in (1.0, 1.5, 2.0)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
@@ -126,9 +134,12 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: standard deviation of the landing short of its mean (commit "learning: progress along the
 #: path counted one standard deviation short when caution is on");
 #: ``affine-0.5-descriptor-1.0-margin-3``: ``affine-0.5-descriptor-1.0`` with
-#: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command).
+#: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command);
+#: ``*-reach-1.5-max-floor-0.3``: ``*-reach-1.5`` with the robot's reach the largest step
+#: shown (``reach.REACH_QUANTILE`` 1) and the nearest waypoint 0.3 m (``reach.REACH_FLOOR``).
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
-                 'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3')
+                 'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3',
+                 'reach-1.5-max-floor-0.3', 'affine-0.5-reach-1.5-max-floor-0.3')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -262,6 +273,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               progress=settings.get('acquisition.progress', 'none'),
               mean_affine_descriptor=settings.get('gp.mean.descriptor', 'none'),
               horizon=settings.get('planner.horizon'), trace=args.trace,
+              reach=settings.get('planner.reach', 'none'),
               **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (

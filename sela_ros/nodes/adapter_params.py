@@ -51,6 +51,11 @@ PARAMETERS = (
          word=AUTO, read_only=True),
     Spec('planner.lookahead', SELAConfig.planner_lookahead, 'distance along the path to the '
          'waypoint of the reward', low=0.01, high=100.0, unit=' m', read_only=True),
+    Spec('planner.reach', NONE if SELAConfig.planner_reach is None
+         else SELAConfig.planner_reach, "the waypoint is set at this multiple of the robot's "
+         'shown reach (the 0.9 quantile of the planar displacements of the steps learnt that '
+         'stayed up, once 3 are), within [0.15 m, planner.lookahead]; none = planner.lookahead '
+         "(the paper's)", low=0.0, high=100.0, kind='double', word=NONE, read_only=True),
     Spec('planner.horizon', AUTO, "steps looked ahead: 1 = the paper's (the gait landing "
          'nearest the waypoint), 2 = the gait that leaves the robot best placed for the next '
          "one; auto = the archive's (1 for a 2-D map, 2 for the 8-D map)", low=1, high=2,
@@ -123,7 +128,7 @@ SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'gp.mean.affine', 'gp.mean.descripto
              'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
              'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',
-             'planner.lookahead')
+             'planner.lookahead', 'planner.reach')
 # Parameter name -> SELAConfig key, where they differ: the node's names must nest in the YAML
 # of ``ros2 param dump`` (no name a prefix of another); the core's keys are what the
 # experiments record.

@@ -59,6 +59,10 @@ class SELAConfig:
     acquisition_progress: float | None = None
     # m along the path to the waypoint of the reward (hexapod: docs/hexapod_results.md)
     planner_lookahead: float = 0.6
+    # Multiple of the robot's shown reach (a high quantile of the planar displacements of the
+    # steps learnt that stayed up: sela_ros.core.mission.reach) at which the waypoint is set,
+    # within [0.15 m, planner_lookahead]; None (none): planner_lookahead (the paper's).
+    planner_reach: float | None = None
     # Steps looked ahead: 1, the paper's (the gait landing nearest the waypoint), or 2 (the
     # gait from whose predicted end pose the best next gait lands nearest a second waypoint
     # as far again along the path). Maps set their own (learning.archive_config).
@@ -128,7 +132,7 @@ NONE = 'none'
 #: ``{name: word}`` of the parameters a SELAConfig may hold as None.
 WORDS = {'fall.kernel.sigma': AUTO, 'priors.max.misfit': NONE, 'priors.weights.sd': NONE,
          'acquisition.caution': NONE, 'gp.mean.affine': NONE, 'acquisition.progress': NONE,
-         'gp.mean.descriptor': NONE}
+         'gp.mean.descriptor': NONE, 'planner.reach': NONE}
 #: The parameters whose ``auto`` is the archive's (:func:`sela_ros.core.mission.archive_config`).
 ARCHIVE_AUTO = ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon')
 

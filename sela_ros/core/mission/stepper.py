@@ -19,6 +19,7 @@ from sela_ros.core.geometry import planar_distance
 from sela_ros.core.learning.sela import Decision, prior_reason
 from sela_ros.core.mission import stepper_io as io
 from sela_ros.core.mission.logic import MissionLogic
+from sela_ros.core.mission.reach import sela_lookahead
 from sela_ros.core.mission.status import detection_status, goal_status, mission_status
 from sela_ros.core.mission.stepper_io import (
     AskedPlan,
@@ -216,14 +217,7 @@ class MissionStepper:
             return []  # an answer to an older request
         path = None if event.path is None else np.asarray(event.path, dtype=float)
         if path is not None and path.size:
-            # The waypoints the reward is built on, taken off the path here and only here.
-            path = path.reshape(-1, 2)
-            start, config = plan.start[:2], self.sela.config
-            plan.waypoint = next_waypoint(path, start, config.planner_lookahead)
-            if config.planner_horizon > 1:
-                second = next_waypoint(path, start, 2 * config.planner_lookahead)
-                if np.linalg.norm(second - plan.waypoint) > 1e-6:
-                    plan.following = second
+            plan.path = path.reshape(-1, 2)
         elif event.waypoint is None:
             plan.refused = event.reason or 'no path'
         else:
@@ -468,9 +462,11 @@ class MissionStepper:
             self._plan = None
             # A goal that cannot be planned is not retried: the mission ends, saying why.
             return self._end(False, 'no_plan', f'no plan to the goal: {plan.refused}', p.pose)
-        if plan.waypoint is None:
+        if not plan.answered():
             return []
         self._plan = None
+        if plan.path is not None:
+            self._take_waypoints(plan)
         p.waypoint = plan.waypoint
         p.decision = self.logic.decide(p.pose, p.waypoint, self.goal, following=plan.following)
         p.behavior_id = self.next_id
@@ -489,6 +485,17 @@ class MissionStepper:
         return [*said, self._save(), SendGait(p.behavior_id, int(d.index), d.predicted_gr,
                                        self.logic.prediction_sigma(d), pose=tuple(p.pose),
                                        waypoint=tuple(p.waypoint), candidates=d.candidates)]
+
+    def _take_waypoints(self, plan):
+        """The waypoints the reward is built on, taken off the planner's path here and only
+        here, as the step starts: what the steps before it taught (``planner.reach``) is
+        learnt by then, whichever of the plan and the detector's verdict came first."""
+        start, lookahead = plan.start[:2], sela_lookahead(self.sela)
+        plan.waypoint = next_waypoint(plan.path, start, lookahead)
+        if self.sela.config.planner_horizon > 1:
+            second = next_waypoint(plan.path, start, 2 * lookahead)
+            if np.linalg.norm(second - plan.waypoint) > 1e-6:
+                plan.following = second
 
     def _next_goal(self, pose):
         """A goal of the mission is reached: on to the next, with all that was learned."""

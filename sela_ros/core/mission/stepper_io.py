@@ -37,7 +37,8 @@ class PoseObserved:
 @dataclass(frozen=True)
 class PlanReceived:
     """The planner's answer: the whole path to the goal (``path``, as ``nav_msgs/GetPlan``
-    gives it), from which the stepper takes the waypoints (``planner.lookahead`` along it);
+    gives it), from which the stepper takes the waypoints as the step starts
+    (``planner.lookahead`` along it, or :mod:`~sela_ros.core.mission.reach`'s);
     or, from a driver that only has one, the ``waypoint`` itself. Neither: no path
     (``reason`` says why)."""
 
@@ -274,6 +275,10 @@ class AskedPlan:
     refused: str = None  # why there is no path
     following: np.ndarray = None  # the waypoint of the step after (planner.horizon 2)
     attempts: int = 1  # times asked
+    path: np.ndarray = None  # (n, 2) the planner's answer, its waypoints taken as the step starts
+
+    def answered(self):
+        return self.waypoint is not None or self.path is not None
 
 
 @dataclass

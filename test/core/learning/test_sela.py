@@ -50,7 +50,7 @@ def test_config_dotted_names():
                                 'acquisition.progress', 'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
                                 'priors.max.misfit', 'priors.max.misfit.reproduced',
-                                'priors.weights.sd', 'planner.horizon'}
+                                'priors.weights.sd', 'planner.horizon', 'planner.reach'}
     with pytest.raises(ValueError, match="unknown SELA parameter.*gp.kernel.sgima"):
         SELAConfig.from_dict({'gp.kernel.sgima': 0.2})
     with pytest.raises(ValueError, match='goal.eps'):
@@ -78,7 +78,7 @@ def test_auto_and_none_are_words_not_numbers():
     # 0 is no kernel length, no horizon, no cap: the words say what 0 cannot.
     for field in ('gp_kernel_sigma', 'fall_kernel_sigma', 'priors_max_misfit',
                   'priors_weights_sd', 'acquisition_caution', 'gp_mean_affine',
-                  'acquisition_progress', 'gp_mean_descriptor'):
+                  'acquisition_progress', 'gp_mean_descriptor', 'planner_reach'):
         with pytest.raises(ValueError, match='must be'):
             SELAConfig(**{field: 0.0})
     with pytest.raises(ValueError, match='fall.kernel.sigma'):
