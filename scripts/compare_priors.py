@@ -18,6 +18,8 @@ fallen robot righted where it lies. Methods:
 * ``affine-<sd>``: ``caution`` with the affine map of the prior mean (``gp.mean.affine``);
   ``affine-0.5-descriptor-<sd>``: its scale linear in the gait's descriptor too
   (``gp.mean.descriptor``);
+* ``hyper-<sd>``: ``caution`` with the GPs' kernel length and signal variance learnt from the
+  steps (``gp.hyper.sd``); ``hyper-<sd>-affine``: that with ``gp.mean.affine`` 0.5;
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -118,7 +120,13 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
                                              'acquisition.caution': 0.15,
                                              'gp.mean.affine': 0.5,
                                              'gp.mean.descriptor': v}
-              for v in (0.5, 1.0, 2.0)}}
+              for v in (0.5, 1.0, 2.0)},
+           **{f'hyper-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                             'gp.mean.affine': 'none', 'gp.hyper.sd': v}
+              for v in (0.5, 1.0)},
+           **{f'hyper-{v}-affine': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                                    'gp.mean.affine': 0.5, 'gp.hyper.sd': v}
+              for v in (0.5, 1.0)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
@@ -261,6 +269,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               mean_affine=settings.get('gp.mean.affine', 'none'),
               progress=settings.get('acquisition.progress', 'none'),
               mean_affine_descriptor=settings.get('gp.mean.descriptor', 'none'),
+              hyper_sd=settings.get('gp.hyper.sd', 'none'),
               horizon=settings.get('planner.horizon'), trace=args.trace,
               **extra)
     out = run_method(job)
