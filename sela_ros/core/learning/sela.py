@@ -389,8 +389,14 @@ class SELA:
         if c.gp_hyper_sd is None or not self._gp.num_samples:
             return
         idx, grs = self.observations
+        fall_idx, fallen = self._fall.observations
+        # A tumble's displacement says nothing of how smooth this robot's gaits are.
+        keep = ~np.isin(idx, fall_idx[fallen]) if fallen.any() else np.ones(len(idx), bool)
+        if not keep.any():
+            return
         base = self._prior if prior is None else prior
-        sigma, variance = hyper.choose(self._gp.sq_distances, grs - base[idx, :grs.shape[1]],
+        residuals = grs[keep] - base[idx[keep], :grs.shape[1]]
+        sigma, variance = hyper.choose(self._gp.sq_distances[np.ix_(keep, keep)], residuals,
                                        c.gp_noise, c.gp_kernel_sigma, c.gp_kernel_variance,
                                        c.gp_hyper_sd, current=self.hyper)
         self._gp.set_hyper(sigma, variance)
