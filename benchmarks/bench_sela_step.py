@@ -161,6 +161,34 @@ def interleaved(args):
                       f'{len(times)}, median {1e3 * np.median(times):.2f} ms')
 
 
+def hyper_cost(repeats=15, seed=0):
+    """``gp.hyper.sd``'s two costs on the shipped 8-D map, for N steps learnt: the grid of
+    kernels scored on the steps' residuals (every step), and the GP refactorised under a new
+    kernel (a step that changes it)."""
+    from sela_ros.core.learning import CandidateSetGP, hyper
+    from sela_ros.core.storage import default_archive_path, load_archive
+
+    archive = load_archive(default_archive_path())
+    candidates, prior = archive.normalised_descriptors(), archive.generic_reward
+    rng = np.random.default_rng(seed)
+    for n in (10, 30, 60):
+        idx = rng.choice(len(candidates), n, replace=False)
+        ys = 0.5 * prior[idx]
+        model = CandidateSetGP(candidates, prior, sigma=0.3)
+        model.fit(idx, ys)
+        fit, change = [], []
+        for k in range(repeats):
+            t0 = time.perf_counter()
+            hyper.choose(model.sq_distances, ys - prior[idx], 0.001, 0.3, 1.0, 0.5)
+            fit.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            model.set_hyper(0.5 if k % 2 == 0 else 0.3, 0.1)
+            change.append(time.perf_counter() - t0)
+        print(f'  {n} steps, {len(candidates)} gaits: the grid of '
+              f'{len(hyper.grid(0.3, 1.0))} kernels scored: median {1e3 * np.median(fit):.2f} '
+              f'ms; the GP refactorised: median {1e3 * np.median(change):.2f} ms', flush=True)
+
+
 def interleave_progress(args):
     """The step on the shipped map with ``acquisition.progress`` none and the weight asked
     for, one after the other ``--rounds`` times, so that the machine's load weighs on both
@@ -215,7 +243,12 @@ def main():
                         help='only time the step on the shipped map (tables mixed) this many '
                              'times with the defaults and with the settings given, '
                              'alternately, and print both medians')
+    parser.add_argument('--hyper-cost', action='store_true',
+                        help="only time gp.hyper.sd's grid fit and refactorisation")
     args = parser.parse_args()
+    if args.hyper_cost:
+        hyper_cost()
+        return
     if args.interleave_progress is not None:
         interleave_progress(args)
     elif args.interleave:

@@ -134,9 +134,16 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: standard deviation of the landing short of its mean (commit "learning: progress along the
 #: path counted one standard deviation short when caution is on");
 #: ``affine-0.5-descriptor-1.0-margin-3``: ``affine-0.5-descriptor-1.0`` with
-#: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command).
+#: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command);
+#: ``hyper-*-falls-in``: ``hyper-*`` with the kernel fitted to every step, tumbles included
+#: (commit "learning: the GPs' kernel length and signal variance learnt from the steps'
+#: residuals ..."); ``hyper-0.5-length``: ``hyper-0.5`` with the signal variance fixed
+#: (``hyper.VARIANCE_FACTORS`` (1,): docs/learning_the_damage.md has the command);
+#: ``hyper-0.5-configured-variance``: ``hyper-0.5`` with ``sela.HYPER_VARIANCE_LEARNT`` False.
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
-                 'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3')
+                 'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3',
+                 'hyper-0.5-falls-in', 'hyper-1.0-falls-in', 'hyper-0.5-affine-falls-in',
+                 'hyper-0.5-length', 'hyper-0.5-configured-variance')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to

@@ -36,6 +36,10 @@ TWO_STEP_CANDIDATES = 40
 #: How much better (log-likelihood ratio) the affine map of the prior mean must have
 #: predicted the steps, each before it was learnt, than the prior mean as it is, to be used.
 AFFINE_MIN_SCORE = 0.0
+#: With ``gp.hyper.sd``: whether the choice reads the posterior variance of the learnt kernel
+#: (True) or of the configured one (False: a GP of that kernel is kept beside, and the learnt
+#: kernel sets only the means).
+HYPER_VARIANCE_LEARNT = True
 
 
 @dataclass
@@ -184,6 +188,8 @@ class SELA:
         c = self.config
         self._gp = gp.CandidateSetGP(self._candidates, self._prior, sigma=c.gp_kernel_sigma,
                                      variance=c.gp_kernel_variance, noise=c.gp_noise)
+        # The configured kernel's GP, beside a learnt one (HYPER_VARIANCE_LEARNT False).
+        self._gp_configured = None
         self._standing = []  # per observation: did the step start from a standing start?
         # How well each way of using the damage priors predicted every step before it was
         # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
@@ -356,10 +362,8 @@ class SELA:
         signal variance was learnt (``gp.hyper.sd``): the choice reads it as such."""
         prior = self._effective_prior(selection)
         self._learn_hyper(prior)
-        mu_t, var = self._gp.query_columns()
-        scale = self._variance_scale()
-        if scale != 1.0:
-            var = var * scale
+        mu_t, _ = self._gp.query_columns()
+        var = self._choice_variance()
         if selection.mixture is not None:
             # The mixture's falls set the fall model's prior as a table's do; no chained runs:
             # those of the damages mixed mislead on another robot (docs/notebook.md).
@@ -375,10 +379,16 @@ class SELA:
                 (fallen.astype(float), self._support[selection.index],
                  self.priors.chained(selection.index) if selection.reproduced else None))
 
-    def _variance_scale(self):
-        """The configured signal variance over the GP's (1 unless ``gp.hyper.sd`` changed
-        it)."""
-        return self.config.gp_kernel_variance / self._gp.variance
+    def _choice_variance(self):
+        """``(M,)`` the posterior variance the choice reads, on the configured kernel's
+        scale: the GP's, times the configured signal variance over the GP's (1 unless
+        ``gp.hyper.sd`` changed it), or the configured kernel's GP's
+        (:data:`HYPER_VARIANCE_LEARNT` False)."""
+        if self._gp_configured is not None:
+            return self._gp_configured.query_columns()[1]
+        var = self._gp.query_columns()[1]
+        scale = self.config.gp_kernel_variance / self._gp.variance
+        return var if scale == 1.0 else var * scale
 
     def _learn_hyper(self, prior) -> None:
         """With ``gp.hyper.sd``, the kernel length and signal variance that the residuals of
@@ -400,6 +410,12 @@ class SELA:
                                        c.gp_noise, c.gp_kernel_sigma, c.gp_kernel_variance,
                                        c.gp_hyper_sd, current=self.hyper)
         self._gp.set_hyper(sigma, variance)
+        if not HYPER_VARIANCE_LEARNT and self._gp_configured is None \
+                and self.hyper != (c.gp_kernel_sigma, c.gp_kernel_variance):
+            self._gp_configured = gp.CandidateSetGP(
+                self._candidates, self._prior, sigma=c.gp_kernel_sigma,
+                variance=c.gp_kernel_variance, noise=c.gp_noise)
+            self._gp_configured.fit(idx, grs)
 
     @property
     def hyper(self):
@@ -648,13 +664,15 @@ class SELA:
         if valid and not hedged and self.config.gp_mean_affine is not None:
             self._score_affine(int(index), observed, bool(standing_start))
         self._gp.add_sample(index, observed_gr)
+        if self._gp_configured is not None:
+            self._gp_configured.add_sample(index, observed_gr)
         self._standing.append(bool(standing_start))
 
     def _note_surprise(self, index, observed) -> None:
         """Keep how far an untried gait landed from its prediction under the prior in use
         (before it is learnt: a prequential error)."""
-        mu_t, var = self._gp.query_columns()
-        if var[index] * self._variance_scale() <= acquisition.UNTRIED_VARIANCE:
+        mu_t, _ = self._gp.query_columns()
+        if self._choice_variance()[index] <= acquisition.UNTRIED_VARIANCE:
             return
         selection = self.select_prior()
         table = self._prior_mean(selection)

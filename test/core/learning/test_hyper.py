@@ -144,3 +144,23 @@ def test_state_round_trip_keeps_the_learnt_kernel():
     assert sela.hyper == kept
     sela.reset_learning()
     assert sela.hyper == (SIGMA0, VARIANCE0)
+
+
+def test_the_choice_can_read_the_configured_kernels_variance(monkeypatch):
+    """With HYPER_VARIANCE_LEARNT False the learnt kernel sets the means, and the variance
+    the choice reads is that of a GP of the configured kernel on the same steps."""
+    import sela_ros.core.learning.sela as sela_module
+
+    monkeypatch.setattr(sela_module, 'HYPER_VARIANCE_LEARNT', False)
+    learnt, _, _ = slow_robot(0, 1.0)
+    mu, sd = learnt.predict()
+    assert learnt.hyper != (SIGMA0, VARIANCE0)
+    idx, grs = learnt.observations
+    configured = CandidateSetGP(learnt._candidates, learnt._prior, sigma=SIGMA0,
+                                variance=VARIANCE0, noise=NOISE)
+    configured.fit(idx, grs)
+    np.testing.assert_allclose(sd ** 2, configured.query()[1], atol=1e-9)
+    np.testing.assert_allclose(mu, learnt.gp.query()[0], atol=1e-12)
+    learnt.tell(int(np.setdiff1d(np.arange(600), idx)[0]), np.zeros(3))  # kept beside
+    configured.add_sample(learnt.observations[0][-1], np.zeros(3))
+    np.testing.assert_allclose(learnt.predict()[1] ** 2, configured.query()[1], atol=1e-9)
