@@ -236,8 +236,8 @@ class CandidateSetGP:
         if not n:
             self._var = np.full(self.num_candidates, self.variance)
             return
-        self._factorise(np.asarray(self._indices, dtype=int), np.array(self._Y),
-                        self._sq[:n].copy())
+        # _factorise keeps a copy of the distances and takes the exp over this buffer.
+        self._factorise(np.asarray(self._indices, dtype=int), np.array(self._Y), self._sq[:n])
 
     def _factorise(self, idx, ys, sq):
         """Learn ``ys`` (N, D) at ``idx`` from scratch, ``sq`` (N, M) their squared
