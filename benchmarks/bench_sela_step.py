@@ -67,7 +67,8 @@ def library_like(priors, count, seed=0):
 
 
 def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
-                  caution=None, mean_affine=None, progress=None, mean_descriptor=None):
+                  caution=None, mean_affine=None, progress=None, mean_descriptor=None,
+                  hyper_sd=None, kernel_changes=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
@@ -75,8 +76,9 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
     standing start first, so the mixture of the tables is in use) and two steps ahead;
     ``caution``: ``acquisition.caution``, ``mean_affine``: ``gp.mean.affine``,
     ``progress``: ``acquisition.progress``; ``mean_descriptor``: ``gp.mean.descriptor`` (None:
-    the defaults). The last item returned says
-    whether caution was on in the steps timed."""
+    the defaults); ``hyper_sd``: ``gp.hyper.sd``, and ``kernel_changes`` (a list) is given
+    ``(seconds, changed)`` of each step timed, ``changed`` whether the step changed the GP's
+    kernel. The last item returned says whether caution was on in the steps timed."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.mission import make_sela
     from sela_ros.core.storage import default_archive_path, load_archive
@@ -103,6 +105,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         config['acquisition.progress'] = progress
     if mean_descriptor is not None:
         config['gp.mean.descriptor'] = mean_descriptor
+    if hyper_sd is not None:
+        config['gp.hyper.sd'] = hyper_sd
     sela = make_sela(archive, config or None, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
@@ -113,11 +117,14 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         sela.tell_fall(d.index, k % 4 == 0)
     times = []
     for _ in range(repeats):
+        kernel = sela.hyper
         t0 = time.perf_counter()
         d = sela.ask(pose)
         sela.tell(d.index, 0.9 * true[d.index])
         sela.tell_fall(d.index, False)
         times.append(time.perf_counter() - t0)
+        if kernel_changes is not None:
+            kernel_changes.append((times[-1], sela.hyper != kernel))
     limit = sela.config.acquisition_caution
     cautious = limit is not None and learnt_error(sela.state_dict()['surprises']) >= limit
     # Whether the affine map of the prior mean was in use in the steps timed (gp.mean.affine
@@ -132,10 +139,12 @@ def interleaved(args):
     and with ``--caution``, ``--mean-affine``, ``--mean-descriptor``: the same machine load
     for both."""
     runs = {'defaults': [], 'given': []}
+    changes = []
     for k in range(args.interleave):
         for name, given in (('defaults', {}), ('given', {
                 'caution': args.caution, 'mean_affine': args.mean_affine,
-                'mean_descriptor': args.mean_descriptor})):
+                'mean_descriptor': args.mean_descriptor, 'hyper_sd': args.hyper_sd,
+                'kernel_changes': changes})):
             t, _, _, prior, _, cautious, mapped = bench_shipped(mixed=True, seed=k, **given)
             runs[name].append(t)
             print(f'  round {k + 1}/{args.interleave}, {name}: median {1e3 * t:.2f} ms '
@@ -144,6 +153,40 @@ def interleaved(args):
     for name, times in runs.items():
         print(f'{name}: median of the rounds\' medians {1e3 * np.median(times):.2f} ms, '
               f'min {1e3 * np.min(times):.2f} ms over {len(times)} rounds')
+    if args.hyper_sd is not None:
+        for changed in (True, False):
+            times = [t for t, c in changes if c == changed]
+            if times:
+                print(f'given, the steps that {"changed" if changed else "kept"} the kernel: '
+                      f'{len(times)}, median {1e3 * np.median(times):.2f} ms')
+
+
+def hyper_cost(repeats=15, seed=0):
+    """``gp.hyper.sd``'s two costs on the shipped 8-D map, for N steps learnt: the grid of
+    kernels scored on the steps' residuals (every step), and the GP refactorised under a new
+    kernel (a step that changes it)."""
+    from sela_ros.core.learning import CandidateSetGP, hyper
+    from sela_ros.core.storage import default_archive_path, load_archive
+
+    archive = load_archive(default_archive_path())
+    candidates, prior = archive.normalised_descriptors(), archive.generic_reward
+    rng = np.random.default_rng(seed)
+    for n in (10, 30, 60):
+        idx = rng.choice(len(candidates), n, replace=False)
+        ys = 0.5 * prior[idx]
+        model = CandidateSetGP(candidates, prior, sigma=0.3)
+        model.fit(idx, ys)
+        fit, change = [], []
+        for k in range(repeats):
+            t0 = time.perf_counter()
+            hyper.choose(model.sq_distances, ys - prior[idx], 0.001, 0.3, 1.0, 0.5)
+            fit.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            model.set_hyper(0.5 if k % 2 == 0 else 0.3, 0.1)
+            change.append(time.perf_counter() - t0)
+        print(f'  {n} steps, {len(candidates)} gaits: the grid of '
+              f'{len(hyper.grid(0.3, 1.0))} kernels scored: median {1e3 * np.median(fit):.2f} '
+              f'ms; the GP refactorised: median {1e3 * np.median(change):.2f} ms', flush=True)
 
 
 def interleave_progress(args):
@@ -193,11 +236,19 @@ def main():
     parser.add_argument('--mean-descriptor', default=None,
                         help="gp.mean.descriptor for the steps on the shipped map, a number or "
                              "none (default: the config's)")
+    parser.add_argument('--hyper-sd', default=None,
+                        help="gp.hyper.sd for the steps on the shipped map (--interleave), a "
+                             "number or none (default: the config's)")
     parser.add_argument('--interleave', type=int, default=0,
                         help='only time the step on the shipped map (tables mixed) this many '
                              'times with the defaults and with the settings given, '
                              'alternately, and print both medians')
+    parser.add_argument('--hyper-cost', action='store_true',
+                        help="only time gp.hyper.sd's grid fit and refactorisation")
     args = parser.parse_args()
+    if args.hyper_cost:
+        hyper_cost()
+        return
     if args.interleave_progress is not None:
         interleave_progress(args)
     elif args.interleave:

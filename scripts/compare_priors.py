@@ -20,6 +20,8 @@ fallen robot righted where it lies. Methods:
   (``gp.mean.descriptor``);
 * ``reach-<g>``: ``caution`` with the waypoint set at ``g`` times the reach the robot's steps
   have shown (``planner.reach``); ``affine-0.5-reach-<g>``: the same with ``gp.mean.affine`` 0.5;
+* ``hyper-<sd>``: ``caution`` with the GPs' kernel length and signal variance learnt from the
+  steps (``gp.hyper.sd``); ``hyper-<sd>-affine``: that with ``gp.mean.affine`` 0.5;
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -126,7 +128,13 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
               for g in (1.0, 1.5, 2.0)},
            **{f'affine-0.5-reach-{g}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                                         'gp.mean.affine': 0.5, 'planner.reach': g}
-              for g in (1.0, 1.5, 2.0)}}
+              for g in (1.0, 1.5, 2.0)},
+           **{f'hyper-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                             'gp.mean.affine': 'none', 'gp.hyper.sd': v}
+              for v in (0.5, 1.0)},
+           **{f'hyper-{v}-affine': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                                    'gp.mean.affine': 0.5, 'gp.hyper.sd': v}
+              for v in (0.5, 1.0)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
@@ -137,9 +145,16 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command);
 #: ``*-reach-1.5-max-floor-0.3``: ``*-reach-1.5`` with the robot's reach the largest step
 #: shown (``reach.REACH_QUANTILE`` 1) and the nearest waypoint 0.3 m (``reach.REACH_FLOOR``).
+#: ``hyper-*-falls-in``: ``hyper-*`` with the kernel fitted to every step, tumbles included
+#: (commit "learning: the GPs' kernel length and signal variance learnt from the steps'
+#: residuals ..."); ``hyper-0.5-length``: ``hyper-0.5`` with the signal variance fixed
+#: (``hyper.VARIANCE_FACTORS`` (1,): docs/learning_the_damage.md has the command);
+#: ``hyper-0.5-configured-variance``: ``hyper-0.5`` with ``sela.HYPER_VARIANCE_LEARNT`` False.
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
                  'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3',
-                 'reach-1.5-max-floor-0.3', 'affine-0.5-reach-1.5-max-floor-0.3')
+                 'reach-1.5-max-floor-0.3', 'affine-0.5-reach-1.5-max-floor-0.3',
+                 'hyper-0.5-falls-in', 'hyper-1.0-falls-in', 'hyper-0.5-affine-falls-in',
+                 'hyper-0.5-length', 'hyper-0.5-configured-variance')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -272,6 +287,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               mean_affine=settings.get('gp.mean.affine', 'none'),
               progress=settings.get('acquisition.progress', 'none'),
               mean_affine_descriptor=settings.get('gp.mean.descriptor', 'none'),
+              hyper_sd=settings.get('gp.hyper.sd', 'none'),
               horizon=settings.get('planner.horizon'), trace=args.trace,
               reach=settings.get('planner.reach', 'none'),
               **extra)

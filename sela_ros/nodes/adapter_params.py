@@ -14,6 +14,11 @@ PARAMETERS = (
          "archive's (0.1, the paper's, for a 2-D map; 0.3 for the 8-D map)", low=0.0,
          high=100.0, kind='double', word=AUTO, read_only=True),
     Spec('gp.noise', 0.001, 'GP noise variance', low=0.0, high=100.0, read_only=True),
+    Spec('gp.hyper.sd', NONE if SELAConfig.gp_hyper_sd is None
+         else SELAConfig.gp_hyper_sd, 'prior standard deviation of the logs of the GP kernel '
+         'length and signal variance learnt from the steps (marginal likelihood of their '
+         'residuals), centred on gp.kernel.sigma and its variance; none = fixed (the '
+         "paper's)", low=0.0, high=100.0, kind='double', word=NONE, read_only=True),
     Spec('gp.mean.affine', NONE if SELAConfig.gp_mean_affine is None
          else SELAConfig.gp_mean_affine, 'prior standard deviation of the '
          'scale and rotation of an affine map of the prior mean learnt from the steps (what '
@@ -123,9 +128,9 @@ PARAMETERS = (
          "sim.solver_iterations the archive must match ('' on a real robot: no check)",
          read_only=True),
 )
-SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'gp.mean.affine', 'gp.mean.descriptor',
-             'acquisition.ucb.alpha', 'acquisition.caution', 'acquisition.progress',
-             'goal.eps',
+SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'gp.hyper.sd', 'gp.mean.affine',
+             'gp.mean.descriptor', 'acquisition.ucb.alpha', 'acquisition.caution',
+             'acquisition.progress', 'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
              'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',
              'planner.lookahead', 'planner.reach')

@@ -73,6 +73,7 @@ def test_auto_and_none_are_spelled_as_words_everywhere():
                      ('sela_adapter', 'gp.mean.affine'): 'none',
                      ('sela_adapter', 'gp.mean.descriptor'): 'none',
                      ('sela_adapter', 'planner.reach'): 'none',
+                     ('sela_adapter', 'gp.hyper.sd'): 'none',
                      ('sela_adapter', 'priors.max_misfit'): 'none',
                      ('sela_adapter', 'priors.weights.sd'): 'none',
                      ('gait_executor', 'fall.min_height'): 'none',

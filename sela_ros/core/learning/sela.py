@@ -19,6 +19,7 @@ from sela_ros.core.learning import (
     damage_priors,
     fall_risk,
     gp,
+    hyper,
     prior_mixture,
 )
 from sela_ros.core.learning.sela_config import SELAConfig
@@ -35,6 +36,10 @@ TWO_STEP_CANDIDATES = 40
 #: How much better (log-likelihood ratio) the affine map of the prior mean must have
 #: predicted the steps, each before it was learnt, than the prior mean as it is, to be used.
 AFFINE_MIN_SCORE = 0.0
+#: With ``gp.hyper.sd``: whether the choice reads the posterior variance of the learnt kernel
+#: (True) or of the configured one (False: a GP of that kernel is kept beside, and the learnt
+#: kernel sets only the means).
+HYPER_VARIANCE_LEARNT = True
 
 
 @dataclass
@@ -183,6 +188,8 @@ class SELA:
         c = self.config
         self._gp = gp.CandidateSetGP(self._candidates, self._prior, sigma=c.gp_kernel_sigma,
                                      variance=c.gp_kernel_variance, noise=c.gp_noise)
+        # The configured kernel's GP, beside a learnt one (HYPER_VARIANCE_LEARNT False).
+        self._gp_configured = None
         self._standing = []  # per observation: did the step start from a standing start?
         # How well each way of using the damage priors predicted every step before it was
         # learnt (log-likelihoods, :meth:`_score_priors`): one table (or the intact map), and
@@ -350,9 +357,13 @@ class SELA:
         """``(mu (k, M), var (M,), fall prior)`` under ``selection``: the fall prior is the
         arguments of :meth:`FallRisk.risk` that the selected damage prior gives (its falls,
         its support prior, and its chained runs if it reproduced the robot's standing
-        starts: those of another damage mislead), ``()`` for the intact map."""
-        mu_t, var = self._gp.query_columns()
+        starts: those of another damage mislead), ``()`` for the intact map. The variance
+        is on the configured kernel's scale (a share of ``gp.kernel.variance``) whatever
+        signal variance was learnt (``gp.hyper.sd``): the choice reads it as such."""
         prior = self._effective_prior(selection)
+        self._learn_hyper(prior)
+        mu_t, _ = self._gp.query_columns()
+        var = self._choice_variance()
         if selection.mixture is not None:
             # The mixture's falls set the fall model's prior as a table's do; no chained runs:
             # those of the damages mixed mislead on another robot (docs/notebook.md).
@@ -367,6 +378,49 @@ class SELA:
         return (self._gp.mean_columns_with_prior(prior), var,
                 (fallen.astype(float), self._support[selection.index],
                  self.priors.chained(selection.index) if selection.reproduced else None))
+
+    def _choice_variance(self):
+        """``(M,)`` the posterior variance the choice reads, on the configured kernel's
+        scale: the GP's, times the configured signal variance over the GP's (1 unless
+        ``gp.hyper.sd`` changed it), or the configured kernel's GP's
+        (:data:`HYPER_VARIANCE_LEARNT` False)."""
+        if self._gp_configured is not None:
+            return self._gp_configured.query_columns()[1]
+        var = self._gp.query_columns()[1]
+        scale = self.config.gp_kernel_variance / self._gp.variance
+        return var if scale == 1.0 else var * scale
+
+    def _learn_hyper(self, prior) -> None:
+        """With ``gp.hyper.sd``, the kernel length and signal variance that the residuals of
+        the steps under the prior mean in use (``prior``, None: the intact map) make most
+        probable (:func:`~sela_ros.core.learning.hyper.choose`; the GP is refactorised only
+        when they change)."""
+        c = self.config
+        if c.gp_hyper_sd is None or not self._gp.num_samples:
+            return
+        idx, grs = self.observations
+        fall_idx, fallen = self._fall.observations
+        # A tumble's displacement says nothing of how smooth this robot's gaits are.
+        keep = ~np.isin(idx, fall_idx[fallen]) if fallen.any() else np.ones(len(idx), bool)
+        if not keep.any():
+            return
+        base = self._prior if prior is None else prior
+        residuals = grs[keep] - base[idx[keep], :grs.shape[1]]
+        sigma, variance = hyper.choose(self._gp.sq_distances[np.ix_(keep, keep)], residuals,
+                                       c.gp_noise, c.gp_kernel_sigma, c.gp_kernel_variance,
+                                       c.gp_hyper_sd, current=self.hyper)
+        self._gp.set_hyper(sigma, variance)
+        if not HYPER_VARIANCE_LEARNT and self._gp_configured is None \
+                and self.hyper != (c.gp_kernel_sigma, c.gp_kernel_variance):
+            self._gp_configured = gp.CandidateSetGP(
+                self._candidates, self._prior, sigma=c.gp_kernel_sigma,
+                variance=c.gp_kernel_variance, noise=c.gp_noise)
+            self._gp_configured.fit(idx, grs)
+
+    @property
+    def hyper(self):
+        """``(kernel length, signal variance)`` of the GP in use."""
+        return self._gp.sigma, self._gp.variance
 
     def _effective_prior(self, selection):
         """The ``(M, k)`` prior mean the GPs' residuals are taken from: ``selection``'s
@@ -610,13 +664,15 @@ class SELA:
         if valid and not hedged and self.config.gp_mean_affine is not None:
             self._score_affine(int(index), observed, bool(standing_start))
         self._gp.add_sample(index, observed_gr)
+        if self._gp_configured is not None:
+            self._gp_configured.add_sample(index, observed_gr)
         self._standing.append(bool(standing_start))
 
     def _note_surprise(self, index, observed) -> None:
         """Keep how far an untried gait landed from its prediction under the prior in use
         (before it is learnt: a prequential error)."""
-        mu_t, var = self._gp.query_columns()
-        if var[index] <= acquisition.UNTRIED_VARIANCE:
+        mu_t, _ = self._gp.query_columns()
+        if self._choice_variance()[index] <= acquisition.UNTRIED_VARIANCE:
             return
         selection = self.select_prior()
         table = self._prior_mean(selection)
@@ -686,6 +742,7 @@ class SELA:
                 'standing_starts': list(self._standing),
                 'prior_scores': dict(self._prior_scores),
                 'surprises': list(self._surprises),
+                'hyper': list(self.hyper),
                 'fall_indices': fall_idx.tolist(), 'fallen': fallen.tolist(),
                 'set_aside': [dict(e) for e in self.set_aside_learning]}
 
@@ -700,8 +757,9 @@ class SELA:
         drop, drop_falls = max(0, len(idx) - count), max(0, len(fall_idx) - count)
         if drop:
             scores, surprises = dict(self._prior_scores), self._surprises[-count:]
-            standing = self._standing[drop:]
+            standing, kernel = self._standing[drop:], self.hyper
             self.reset_learning()
+            self._gp.set_hyper(*kernel)
             self._gp.fit(idx[drop:], grs[drop:])
             self._standing = standing
             self._prior_scores, self._surprises = scores, surprises
@@ -754,6 +812,11 @@ class SELA:
         self.reset_learning()
         self.forget_falls()
         self.set_aside_learning = set_aside[-SET_ASIDE_KEPT:]
+        kernel = state.get('hyper')
+        if self.config.gp_hyper_sd is not None and isinstance(kernel, list) \
+                and len(kernel) == 2 and all(_positive(v) for v in kernel):
+            # The kernel the GP had (gp.hyper.sd): the next choice goes on from it.
+            self._gp.set_hyper(*kernel)
         scores = state.get('prior_scores')
         scores = ({k: float(v) for k, v in scores.items()} if isinstance(scores, dict)
                   and set(scores) == set(self._prior_scores) else None)
@@ -775,3 +838,8 @@ class SELA:
             self._prior_scores = scores
         if surprises is not None:
             self._surprises = surprises if keep is None else surprises[-keep:]
+
+
+def _positive(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) \
+        and bool(np.isfinite(value)) and value > 0

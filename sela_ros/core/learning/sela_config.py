@@ -37,6 +37,10 @@ class SELAConfig:
     gp_kernel_sigma: float = gp.DEFAULT_SIGMA
     gp_kernel_variance: float = gp.DEFAULT_VARIANCE
     gp_noise: float = gp.DEFAULT_NOISE
+    # Prior standard deviation of the logs of the kernel length and signal variance learnt
+    # from the steps' residuals by marginal likelihood (sela_ros.core.learning.hyper),
+    # centred on gp.kernel.sigma and gp.kernel.variance; None (none): fixed (the paper's).
+    gp_hyper_sd: float | None = None
     # Prior standard deviation of the scale and rotation terms of an affine map of the prior
     # mean learnt from the steps (sela_ros.core.learning.affine_mean: what the damage does to
     # every gait), centred on the identity; None (none): the prior mean as it is (the paper's).
@@ -132,7 +136,8 @@ NONE = 'none'
 #: ``{name: word}`` of the parameters a SELAConfig may hold as None.
 WORDS = {'fall.kernel.sigma': AUTO, 'priors.max.misfit': NONE, 'priors.weights.sd': NONE,
          'acquisition.caution': NONE, 'gp.mean.affine': NONE, 'acquisition.progress': NONE,
-         'gp.mean.descriptor': NONE, 'planner.reach': NONE}
+         'gp.mean.descriptor': NONE, 'planner.reach': NONE,
+         'gp.hyper.sd': NONE}
 #: The parameters whose ``auto`` is the archive's (:func:`sela_ros.core.mission.archive_config`).
 ARCHIVE_AUTO = ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon')
 

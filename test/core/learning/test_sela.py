@@ -45,7 +45,7 @@ def test_config_dotted_names():
     assert c.gp_kernel_sigma == 0.2 and c.acquisition_ucb_alpha == 0.1
     assert c.goal_eps == 0.1 and c.gp_noise == 0.001
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
-                                'gp.mean.affine', 'gp.mean.descriptor',
+                                'gp.mean.affine', 'gp.mean.descriptor', 'gp.hyper.sd',
                                 'acquisition.ucb.alpha', 'acquisition.caution',
                                 'acquisition.progress', 'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
@@ -78,7 +78,8 @@ def test_auto_and_none_are_words_not_numbers():
     # 0 is no kernel length, no horizon, no cap: the words say what 0 cannot.
     for field in ('gp_kernel_sigma', 'fall_kernel_sigma', 'priors_max_misfit',
                   'priors_weights_sd', 'acquisition_caution', 'gp_mean_affine',
-                  'acquisition_progress', 'gp_mean_descriptor', 'planner_reach'):
+                  'acquisition_progress', 'gp_mean_descriptor', 'planner_reach',
+                  'gp_hyper_sd'):
         with pytest.raises(ValueError, match='must be'):
             SELAConfig(**{field: 0.0})
     with pytest.raises(ValueError, match='fall.kernel.sigma'):
