@@ -196,7 +196,7 @@ def interleave_progress(args):
     times = {'none': [], args.interleave_progress: []}
     for r in range(args.rounds):
         for progress in times:
-            t, _, _, prior, _, cautious = bench_shipped(caution=args.caution,
+            t, _, _, prior, _, cautious, _ = bench_shipped(caution=args.caution,
                                                         mean_affine=args.mean_affine,
                                                         progress=progress)
             times[progress].append(t)

@@ -36,6 +36,9 @@ TINY = {
     'bench_sela_step interleaved': (['--interleave', '1', '--mean-affine', '0.5',
                                      '--mean-descriptor', '1.0'],
                                     ['round 1/1, given', 'defaults: median', 'given: median']),
+    'bench_sela_step progress': (['--interleave-progress', '1.0', '--rounds', '1'],
+                                 ['round 1/1, acquisition.progress 1.0',
+                                  "acquisition.progress 1.0: median of the rounds' medians"]),
     'bench_state_file': (['--observations', '20'], ['20 observations', 'taken back in']),
 }
 #: Over DDS, the four nodes: test/dds/test_bench_ros.py.
