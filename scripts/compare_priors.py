@@ -18,6 +18,9 @@ fallen robot righted where it lies. Methods:
 * ``affine-<sd>``: ``caution`` with the affine map of the prior mean (``gp.mean.affine``);
   ``affine-0.5-descriptor-<sd>``: its scale linear in the gait's descriptor too
   (``gp.mean.descriptor``);
+* ``reach-<r>``: ``caution`` with each gait scored by its chance of landing within ``r`` m of
+  the waypoint (``acquisition.reach``); ``affine-0.5-reach-<r>``: the same with
+  ``gp.mean.affine`` 0.5;
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -118,7 +121,14 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
                                              'acquisition.caution': 0.15,
                                              'gp.mean.affine': 0.5,
                                              'gp.mean.descriptor': v}
-              for v in (0.5, 1.0, 2.0)}}
+              for v in (0.5, 1.0, 2.0)},
+           **{f'reach-{r}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                             'gp.mean.affine': 'none', 'acquisition.reach': r}
+              for r in (0.15, 0.3, 0.45)},
+           **{f'affine-0.5-reach-{r}': {'priors.weights.sd': 1.0,
+                                        'acquisition.caution': 0.15, 'gp.mean.affine': 0.5,
+                                        'acquisition.reach': r}
+              for r in (0.15, 0.3, 0.45)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
@@ -261,6 +271,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               mean_affine=settings.get('gp.mean.affine', 'none'),
               progress=settings.get('acquisition.progress', 'none'),
               mean_affine_descriptor=settings.get('gp.mean.descriptor', 'none'),
+              reach=settings.get('acquisition.reach', 'none'),
               horizon=settings.get('planner.horizon'), trace=args.trace,
               **extra)
     out = run_method(job)

@@ -219,7 +219,7 @@ RECORDED_SELA_PARAMETERS = ('gp.kernel.sigma', 'acquisition.ucb.alpha', 'fall.ri
 def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=None,
                 fall_kernel_sigma=None, fall_cost=None, horizon=None,
                 weights_sd=None, caution=None, mean_affine=None,
-                progress=None, mean_affine_descriptor=None) -> SELAConfig:
+                progress=None, mean_affine_descriptor=None, reach=None) -> SELAConfig:
     """The SELA parameters of a run: those given, the archive's own for the rest."""
     from sela_ros.core.mission import archive_config
 
@@ -229,7 +229,7 @@ def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=Non
              'planner.horizon': horizon, 'priors.weights.sd': weights_sd,
              'acquisition.caution': caution, 'gp.mean.affine': mean_affine,
              'acquisition.progress': progress,
-             'gp.mean.descriptor': mean_affine_descriptor}
+             'gp.mean.descriptor': mean_affine_descriptor, 'acquisition.reach': reach}
     return archive_config(archive, {k: v for k, v in given.items() if v is not None})
 
 
@@ -238,10 +238,10 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
                  fall_cost=None, priors=None, horizon=None, weights_sd=None,
                  caution=None, mean_affine=None, progress=None,
-                 mean_affine_descriptor=None) -> Problem:
+                 mean_affine_descriptor=None, reach=None) -> Problem:
     config = sela_config(archive, lookahead, kernel_sigma, alpha, fall_risk,
                          fall_kernel_sigma, fall_cost, horizon, weights_sd, caution,
-                         mean_affine, progress, mean_affine_descriptor)
+                         mean_affine, progress, mean_affine_descriptor, reach)
     return Problem(
         candidates=archive.normalised_descriptors(),
         prior_gr=archive.generic_reward,
@@ -311,6 +311,7 @@ class Job:
     mean_affine: object = None  # gp.mean.affine, or 'none' (None: the default)
     progress: object = None  # acquisition.progress, or 'none' (None: the default)
     mean_affine_descriptor: object = None  # gp.mean.descriptor (None: the default)
+    reach: object = None  # acquisition.reach, m or 'none' (None: the default)
     trace: bool = False  # keep each step's record in the output ('steps_detail')
     # (M, 3) the GPs' prior mean in place of the map's (None: the map's): what SELA does with
     # a given table as its prior, for bounds (scripts/compare_priors.py, bound-own, bound-fit)
@@ -348,7 +349,8 @@ def run_method(job: Job):
                                horizon=job.horizon, weights_sd=job.weights_sd,
                                caution=job.caution, mean_affine=job.mean_affine,
                                progress=job.progress,
-                               mean_affine_descriptor=job.mean_affine_descriptor)
+                               mean_affine_descriptor=job.mean_affine_descriptor,
+                               reach=job.reach)
         if job.prior_mean is not None:
             problem = dataclasses.replace(problem,
                                           prior_gr=np.asarray(job.prior_mean, dtype=float))
