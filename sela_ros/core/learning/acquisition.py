@@ -198,9 +198,11 @@ def path_from(path, point, length):
 # scored by the probability that its landing, N(predicted, landing_var I_2), falls within the
 # reach of the waypoint. A gait that surely stays put then has no chance, however sure, and a
 # gait whose landing is uncertain loses what its spread puts out of reach.
-#: Below this chance for every gait allowed, no gait has a real chance of reaching: the gaits
-#: are scored by their expected distance to the waypoint (caution's).
-REACH_MIN_CHANCE = 0.1
+#: Below this chance for every gait allowed, no gait is likely to reach: the gaits are scored
+#: by their expected distance to the waypoint (caution's). Lower, a robot that lost its speed
+#: keeps trying untried gaits, whose spread alone gives them some chance, and stays put
+#: (docs/learning_the_damage.md).
+REACH_MIN_CHANCE = 0.5
 #: Metres of reward per metre of expected distance added to the chance (times the reach):
 #: among gaits about as likely to reach, the one expected nearer the waypoint.
 REACH_TIE_BREAK = 0.01

@@ -608,29 +608,30 @@ class SELA:
         return int(top[int(np.argmax(value))]) if np.isfinite(value).any() else index
 
     def _reach_both(self, cost, landing_var, top, chance, risk):
-        """(K,) probability that the first gaits ``top`` land within reach of their
-        waypoint (``chance``) and the best next gait within reach of the second, neither
-        falling; ``cost``: (K, M) the expected squared distances of the second landings
-        (both spreads in). None where no second gait has
-        :data:`~acquisition.REACH_MIN_CHANCE` of it."""
+        """(K,) value (m) of the first gaits ``top``: the reach times the probability that
+        the first lands within reach of its waypoint (``chance``) and the best next gait
+        within reach of the second, less both gaits' fall cost (as in one step);
+        ``cost``: (K, M) the expected squared distances of the second landings (both spreads
+        in). None where no second gait allowed has :data:`~acquisition.REACH_MIN_CHANCE`."""
         c = self.config
+        reach = c.acquisition_reach
         # Only the second gaits expected nearest matter: a gait far out of reach has no
         # chance, and the chance of the (K, M) landings would cost more than the rest.
         near = min(REACH_SECOND_CANDIDATES, cost.shape[1])
         cols = np.argpartition(cost, near - 1, axis=1)[:, :near]
         rows = np.arange(len(top))[:, None]
         var = landing_var[top][:, None] + landing_var[cols]
-        second = acquisition.reach_probability(cost[rows, cols] - 2.0 * var, var,
-                                               c.acquisition_reach)
-        first = chance[top]
+        second = acquisition.reach_probability(cost[rows, cols] - 2.0 * var, var, reach)
+        fall = 0.0 if risk is None else c.fall_risk_cost * risk[cols]
         if risk is not None:
-            second = np.where(risk[cols] <= c.fall_risk_threshold,
-                              second * (1.0 - risk[cols]), 0.0)
-            first = first * (1.0 - risk[top])
-        best = second.max(axis=1)
-        if best.max() < acquisition.REACH_MIN_CHANCE:
+            second = np.where(risk[cols] <= c.fall_risk_threshold, second, -np.inf)
+        if not second.max() >= acquisition.REACH_MIN_CHANCE:
             return None
-        return first * best
+        best = np.argmax(reach * second - fall, axis=1)
+        both = reach * chance[top] * second[rows[:, 0], best]
+        if risk is not None:
+            both -= c.fall_risk_cost * (risk[top] + risk[cols[rows[:, 0], best]])
+        return both
 
     def _two_step_progress(self, ends, mu_t, track, waypoint, second, top, landing_var):
         """(K, M) progress rewards (:func:`~acquisition.progress_reward`) beyond ``second``

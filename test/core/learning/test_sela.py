@@ -431,24 +431,24 @@ def _reach_sela(prior, reach, sigma=0.02, horizon=1):
 
 
 def test_reach_a_gait_that_surely_stays_put_does_not_beat_one_that_may_reach():
-    # Gait 0 goes 0.1 m, as predicted; gaits 1-8 were predicted to reach the waypoint and
-    # stayed put; gaits 9-11 are predicted to reach it, untried.
+    # Gait 0 goes 0.1 m, as predicted; gaits 1-5 were predicted to reach the waypoint and
+    # stayed put; gaits 6-11 are predicted to reach it, untried.
     prior = [[0.1, 0.0]] + [[0.6, 0.0]] * 11
 
     def choice(reach):
         sela = _reach_sela(prior, reach)
         sela.tell(0, [0.1, 0.0])
-        for i in range(1, 9):
+        for i in range(1, 6):
             sela.tell(i, [0.0, 0.0])
         return sela.ask(np.zeros(2))
 
     # By the expected distance the sure short step (0.5 m from the waypoint, surely) beats an
-    # untried gait that lands anywhere within 0.4 m (per axis) of the waypoint.
+    # untried gait that lands anywhere within 0.36 m (per axis) of the waypoint.
     assert choice('none').index == 0
-    # Gait 0 has no chance of landing within 0.3 m of the waypoint; an untried one has some.
-    decision = choice(0.3)
-    assert decision.index in (9, 10, 11)
-    assert 0.1 * 0.3 < decision.reward < 0.5 * 0.3  # reach x a chance between 0.1 and 0.5
+    # Gait 0 is unlikely to land within 0.45 m of the waypoint; an untried one is likely to.
+    decision = choice(0.45)
+    assert decision.index in range(6, 12)
+    assert 0.5 * 0.45 - 0.01 < decision.reward < 0.6 * 0.45  # reach x a chance of 0.5-0.6
 
 
 def test_reach_a_fast_sure_gait_beats_a_fast_unsure_one():
