@@ -67,15 +67,16 @@ def library_like(priors, count, seed=0):
 
 
 def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
-                  caution=None, mean_affine=None, progress=None, mean_descriptor=None):
+                  caution=None, mean_affine=None, progress=None, mean_descriptor=None,
+                  reach=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
     step is timed with a damage prior in use; ``mixed``: of two of them added up, from a
     standing start first, so the mixture of the tables is in use) and two steps ahead;
     ``caution``: ``acquisition.caution``, ``mean_affine``: ``gp.mean.affine``,
-    ``progress``: ``acquisition.progress``; ``mean_descriptor``: ``gp.mean.descriptor`` (None:
-    the defaults). The last item returned says
+    ``progress``: ``acquisition.progress``; ``mean_descriptor``: ``gp.mean.descriptor``;
+    ``reach``: ``acquisition.reach`` (None: the defaults). The last item returned says
     whether caution was on in the steps timed."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.mission import make_sela
@@ -103,6 +104,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         config['acquisition.progress'] = progress
     if mean_descriptor is not None:
         config['gp.mean.descriptor'] = mean_descriptor
+    if reach is not None:
+        config['acquisition.reach'] = reach
     sela = make_sela(archive, config or None, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
@@ -129,13 +132,13 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
 
 def interleaved(args):
     """The step on the shipped map, the tables mixed, timed alternately with the defaults
-    and with ``--caution``, ``--mean-affine``, ``--mean-descriptor``: the same machine load
+    and with ``--caution``, ``--mean-affine``, ``--mean-descriptor``, ``--reach``: the same load
     for both."""
     runs = {'defaults': [], 'given': []}
     for k in range(args.interleave):
         for name, given in (('defaults', {}), ('given', {
                 'caution': args.caution, 'mean_affine': args.mean_affine,
-                'mean_descriptor': args.mean_descriptor})):
+                'mean_descriptor': args.mean_descriptor, 'reach': args.reach})):
             t, _, _, prior, _, cautious, mapped = bench_shipped(mixed=True, seed=k, **given)
             runs[name].append(t)
             print(f'  round {k + 1}/{args.interleave}, {name}: median {1e3 * t:.2f} ms '
@@ -193,6 +196,9 @@ def main():
     parser.add_argument('--mean-descriptor', default=None,
                         help="gp.mean.descriptor for the steps on the shipped map, a number or "
                              "none (default: the config's)")
+    parser.add_argument('--reach', default=None,
+                        help="acquisition.reach for the steps on the shipped map with "
+                             "--interleave, a number or none (default: the config's)")
     parser.add_argument('--interleave', type=int, default=0,
                         help='only time the step on the shipped map (tables mixed) this many '
                              'times with the defaults and with the settings given, '

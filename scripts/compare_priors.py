@@ -139,10 +139,13 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command).
 #: ``reach-0.3-floor-0.1``: ``reach-0.3`` with ``acquisition.REACH_MIN_CHANCE`` 0.1 and two
 #: steps ahead scored by the product of both steps' chances times 1 - each fall risk (commit
-#: "learning: acquisition.reach scores each gait by its chance of landing within reach ...").
+#: "learning: acquisition.reach scores each gait by its chance of landing within reach ...");
+#: ``disappointment``: ``caution`` with the untried gaits' predicted steps shrunk by the share
+#: of untried gaits that disappointed (a patch of ``SELA._posterior``: the command is in
+#: docs/learning_the_damage.md).
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
                  'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3',
-                 'reach-0.3-floor-0.1')
+                 'reach-0.3-floor-0.1', 'disappointment')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
