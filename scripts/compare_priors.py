@@ -142,10 +142,12 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: "learning: acquisition.reach scores each gait by its chance of landing within reach ...");
 #: ``disappointment``: ``caution`` with the untried gaits' predicted steps shrunk by the share
 #: of untried gaits that disappointed (a patch of ``SELA._posterior``: the command is in
-#: docs/learning_the_damage.md).
+#: docs/learning_the_damage.md); ``second-inflated``: ``caution`` with the second of two steps
+#: always scored by the expected distance under the untried gaits' learnt error, caution on or
+#: not (a patch of ``SELA._two_step_choice``, the command there too).
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
                  'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3',
-                 'reach-0.3-floor-0.1', 'disappointment')
+                 'reach-0.3-floor-0.1', 'disappointment', 'second-inflated')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
