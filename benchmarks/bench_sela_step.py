@@ -68,7 +68,7 @@ def library_like(priors, count, seed=0):
 
 def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
                   caution=None, mean_affine=None, progress=None, mean_descriptor=None,
-                  hyper_sd=None, kernel_changes=None):
+                  hyper_sd=None, kernel_changes=None, reach=None):
     """(median, min, gaits, prior in use, horizon) of one step on the shipped 8-D map, as the
     adapter runs it: SE(2) generic rewards, the fall GP and the support model of untried
     gaits, the shipped damage priors (the robot's steps are those of one of them, so the
@@ -78,7 +78,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
     ``progress``: ``acquisition.progress``; ``mean_descriptor``: ``gp.mean.descriptor`` (None:
     the defaults); ``hyper_sd``: ``gp.hyper.sd``, and ``kernel_changes`` (a list) is given
     ``(seconds, changed)`` of each step timed, ``changed`` whether the step changed the GP's
-    kernel. The last item returned says whether caution was on in the steps timed."""
+    kernel; ``reach``: ``acquisition.reach``. The last item returned says whether caution
+    was on in the steps timed."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.mission import make_sela
     from sela_ros.core.storage import default_archive_path, load_archive
@@ -107,6 +108,8 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         config['gp.mean.descriptor'] = mean_descriptor
     if hyper_sd is not None:
         config['gp.hyper.sd'] = hyper_sd
+    if reach is not None:
+        config['acquisition.reach'] = reach
     sela = make_sela(archive, config or None, priors=priors)
     sela.set_goal([20.0, 20.0])  # far: every step plans two ahead
     rng = np.random.default_rng(seed)
@@ -136,7 +139,7 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
 
 def interleaved(args):
     """The step on the shipped map, the tables mixed, timed alternately with the defaults
-    and with ``--caution``, ``--mean-affine``, ``--mean-descriptor``: the same machine load
+    and with ``--caution``, ``--mean-affine``, ``--mean-descriptor``, ``--reach``: the same load
     for both."""
     runs = {'defaults': [], 'given': []}
     changes = []
@@ -144,7 +147,7 @@ def interleaved(args):
         for name, given in (('defaults', {}), ('given', {
                 'caution': args.caution, 'mean_affine': args.mean_affine,
                 'mean_descriptor': args.mean_descriptor, 'hyper_sd': args.hyper_sd,
-                'kernel_changes': changes})):
+                'kernel_changes': changes, 'reach': args.reach})):
             t, _, _, prior, _, cautious, mapped = bench_shipped(mixed=True, seed=k, **given)
             runs[name].append(t)
             print(f'  round {k + 1}/{args.interleave}, {name}: median {1e3 * t:.2f} ms '
@@ -239,6 +242,9 @@ def main():
     parser.add_argument('--hyper-sd', default=None,
                         help="gp.hyper.sd for the steps on the shipped map (--interleave), a "
                              "number or none (default: the config's)")
+    parser.add_argument('--reach', default=None,
+                        help="acquisition.reach for the steps on the shipped map with "
+                             "--interleave, a number or none (default: the config's)")
     parser.add_argument('--interleave', type=int, default=0,
                         help='only time the step on the shipped map (tables mixed) this many '
                              'times with the defaults and with the settings given, '

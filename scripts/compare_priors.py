@@ -22,6 +22,9 @@ fallen robot righted where it lies. Methods:
   have shown (``planner.reach``); ``affine-0.5-reach-<g>``: the same with ``gp.mean.affine`` 0.5;
 * ``hyper-<sd>``: ``caution`` with the GPs' kernel length and signal variance learnt from the
   steps (``gp.hyper.sd``); ``hyper-<sd>-affine``: that with ``gp.mean.affine`` 0.5;
+* ``aprol-<r>``: ``caution`` with each gait scored by its chance of landing within ``r`` m of
+  the waypoint (``acquisition.reach``); ``affine-0.5-aprol-<r>``: the same with
+  ``gp.mean.affine`` 0.5;
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -134,7 +137,14 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
               for v in (0.5, 1.0)},
            **{f'hyper-{v}-affine': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                                     'gp.mean.affine': 0.5, 'gp.hyper.sd': v}
-              for v in (0.5, 1.0)}}
+              for v in (0.5, 1.0)},
+           **{f'aprol-{r}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                             'gp.mean.affine': 'none', 'acquisition.reach': r}
+              for r in (0.15, 0.3, 0.45)},
+           **{f'affine-0.5-aprol-{r}': {'priors.weights.sd': 1.0,
+                                        'acquisition.caution': 0.15, 'gp.mean.affine': 0.5,
+                                        'acquisition.reach': r}
+              for r in (0.15, 0.3, 0.45)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
@@ -144,17 +154,26 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: ``affine-0.5-descriptor-1.0-margin-3``: ``affine-0.5-descriptor-1.0`` with
 #: ``sela.AFFINE_MIN_SCORE`` 3 (docs/learning_the_damage.md has the command);
 #: ``*-reach-1.5-max-floor-0.3``: ``*-reach-1.5`` with the robot's reach the largest step
-#: shown (``reach.REACH_QUANTILE`` 1) and the nearest waypoint 0.3 m (``reach.REACH_FLOOR``).
+#: shown (``reach.REACH_QUANTILE`` 1) and the nearest waypoint 0.3 m (``reach.REACH_FLOOR``);
 #: ``hyper-*-falls-in``: ``hyper-*`` with the kernel fitted to every step, tumbles included
 #: (commit "learning: the GPs' kernel length and signal variance learnt from the steps'
 #: residuals ..."); ``hyper-0.5-length``: ``hyper-0.5`` with the signal variance fixed
 #: (``hyper.VARIANCE_FACTORS`` (1,): docs/learning_the_damage.md has the command);
-#: ``hyper-0.5-configured-variance``: ``hyper-0.5`` with ``sela.HYPER_VARIANCE_LEARNT`` False.
+#: ``hyper-0.5-configured-variance``: ``hyper-0.5`` with ``sela.HYPER_VARIANCE_LEARNT`` False;
+#: ``aprol-0.3-floor-0.1``: ``aprol-0.3`` with ``acquisition.REACH_MIN_CHANCE`` 0.1 and two
+#: steps ahead scored by the product of both steps' chances times 1 - each fall risk (commit
+#: "learning: acquisition.reach scores each gait by its chance of landing within reach ...");
+#: ``disappointment``: ``caution`` with the untried gaits' predicted steps shrunk by the share
+#: of untried gaits that disappointed (a patch of ``SELA._posterior``: the command is in
+#: docs/learning_the_damage.md); ``second-inflated``: ``caution`` with the second of two steps
+#: always scored by the expected distance under the untried gaits' learnt error, caution on or
+#: not (a patch of ``SELA._two_step_choice``, the command there too).
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
                  'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3',
                  'reach-1.5-max-floor-0.3', 'affine-0.5-reach-1.5-max-floor-0.3',
                  'hyper-0.5-falls-in', 'hyper-1.0-falls-in', 'hyper-0.5-affine-falls-in',
-                 'hyper-0.5-length', 'hyper-0.5-configured-variance')
+                 'hyper-0.5-length', 'hyper-0.5-configured-variance',
+                 'aprol-0.3-floor-0.1', 'disappointment', 'second-inflated')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -288,6 +307,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               progress=settings.get('acquisition.progress', 'none'),
               mean_affine_descriptor=settings.get('gp.mean.descriptor', 'none'),
               hyper_sd=settings.get('gp.hyper.sd', 'none'),
+              reach_chance=settings.get('acquisition.reach', 'none'),
               horizon=settings.get('planner.horizon'), trace=args.trace,
               reach=settings.get('planner.reach', 'none'),
               **extra)

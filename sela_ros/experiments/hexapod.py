@@ -220,7 +220,7 @@ def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=Non
                 fall_kernel_sigma=None, fall_cost=None, horizon=None,
                 weights_sd=None, caution=None, mean_affine=None,
                 progress=None, mean_affine_descriptor=None, reach=None,
-                hyper_sd=None) -> SELAConfig:
+                hyper_sd=None, reach_chance=None) -> SELAConfig:
     """The SELA parameters of a run: those given, the archive's own for the rest."""
     from sela_ros.core.mission import archive_config
 
@@ -231,7 +231,8 @@ def sela_config(archive, lookahead, kernel_sigma=None, alpha=None, fall_risk=Non
              'acquisition.caution': caution, 'gp.mean.affine': mean_affine,
              'acquisition.progress': progress,
              'gp.mean.descriptor': mean_affine_descriptor, 'planner.reach': reach,
-             'gp.hyper.sd': hyper_sd}
+             'gp.hyper.sd': hyper_sd,
+             'acquisition.reach': reach_chance}
     return archive_config(archive, {k: v for k, v in given.items() if v is not None})
 
 
@@ -240,10 +241,12 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
                  fall_risk=None, planner=None, via=(), fall_kernel_sigma=None,
                  fall_cost=None, priors=None, horizon=None, weights_sd=None,
                  caution=None, mean_affine=None, progress=None,
-                 mean_affine_descriptor=None, reach=None, hyper_sd=None) -> Problem:
+                 mean_affine_descriptor=None, reach=None, hyper_sd=None,
+                 reach_chance=None) -> Problem:
     config = sela_config(archive, lookahead, kernel_sigma, alpha, fall_risk,
                          fall_kernel_sigma, fall_cost, horizon, weights_sd, caution,
-                         mean_affine, progress, mean_affine_descriptor, reach, hyper_sd)
+                         mean_affine, progress, mean_affine_descriptor, reach, hyper_sd,
+                         reach_chance)
     return Problem(
         candidates=archive.normalised_descriptors(),
         prior_gr=archive.generic_reward,
@@ -315,6 +318,7 @@ class Job:
     mean_affine_descriptor: object = None  # gp.mean.descriptor (None: the default)
     reach: object = None  # planner.reach, or 'none' (None: the default)
     hyper_sd: object = None  # gp.hyper.sd, or 'none' (None: the default)
+    reach_chance: object = None  # acquisition.reach, m or 'none' (None: the default)
     trace: bool = False  # keep each step's record in the output ('steps_detail')
     # (M, 3) the GPs' prior mean in place of the map's (None: the map's): what SELA does with
     # a given table as its prior, for bounds (scripts/compare_priors.py, bound-own, bound-fit)
@@ -353,7 +357,8 @@ def run_method(job: Job):
                                caution=job.caution, mean_affine=job.mean_affine,
                                progress=job.progress,
                                mean_affine_descriptor=job.mean_affine_descriptor,
-                               reach=job.reach, hyper_sd=job.hyper_sd)
+                               reach=job.reach, hyper_sd=job.hyper_sd,
+                               reach_chance=job.reach_chance)
         if job.prior_mean is not None:
             problem = dataclasses.replace(problem,
                                           prior_gr=np.asarray(job.prior_mean, dtype=float))

@@ -44,6 +44,11 @@ PARAMETERS = (
          "less this weight times its distance off the path; none = by its distance to the "
          "waypoint (the paper's)", low=0.0, high=100.0, kind='double', word=NONE,
          read_only=True),
+    Spec('acquisition.reach', NONE if SELAConfig.acquisition_reach is None
+         else SELAConfig.acquisition_reach, 'while caution is on, each gait is scored by the '
+         'probability that its landing falls within this distance of the waypoint (two steps '
+         "ahead: of both); none = caution's expected distance", low=0.0, high=100.0,
+         unit=' m', kind='double', word=NONE, read_only=True),
     Spec('goal.eps', 0.1, 'the goal is reached within this distance', low=1e-4, high=100.0,
          unit=' m', read_only=True),
     Spec('fall.risk.threshold', 0.3, 'risk of falling accepted: gaits predicted riskier are '
@@ -130,7 +135,7 @@ PARAMETERS = (
 )
 SELA_KEYS = ('gp.kernel.sigma', 'gp.noise', 'gp.hyper.sd', 'gp.mean.affine',
              'gp.mean.descriptor', 'acquisition.ucb.alpha', 'acquisition.caution',
-             'acquisition.progress', 'goal.eps',
+             'acquisition.progress', 'acquisition.reach', 'goal.eps',
              'fall.risk.threshold', 'fall.risk.cost', 'fall.kernel.sigma', 'priors.max_misfit',
              'priors.max_misfit_reproduced', 'priors.weights.sd', 'planner.horizon',
              'planner.lookahead', 'planner.reach')

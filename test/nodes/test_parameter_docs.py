@@ -70,6 +70,7 @@ def test_auto_and_none_are_spelled_as_words_everywhere():
                      ('sela_adapter', 'outcome.max_displacement'): 'auto',
                      ('sela_adapter', 'acquisition.caution'): 'none',
                      ('sela_adapter', 'acquisition.progress'): 'none',
+                     ('sela_adapter', 'acquisition.reach'): 'none',
                      ('sela_adapter', 'gp.mean.affine'): 'none',
                      ('sela_adapter', 'gp.mean.descriptor'): 'none',
                      ('sela_adapter', 'planner.reach'): 'none',

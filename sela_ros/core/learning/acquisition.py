@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy import special
 
 DEFAULT_ALPHA = 0.05
 
@@ -191,3 +192,49 @@ def path_from(path, point, length):
 
     inner = path[(cum > first) & (cum < last)]
     return np.vstack([at(first), inner, at(last)])
+
+
+# The chance of landing within reach (``acquisition.reach``): while caution is on, a gait is
+# scored by the probability that its landing, N(predicted, landing_var I_2), falls within the
+# reach of the waypoint. A gait that surely stays put then has no chance, however sure, and a
+# gait whose landing is uncertain loses what its spread puts out of reach.
+#: Below this chance for every gait allowed, no gait is likely to reach: the gaits are scored
+#: by their expected distance to the waypoint (caution's). Lower, a robot that lost its speed
+#: keeps trying untried gaits, whose spread alone gives them some chance, and stays put
+#: (docs/learning_the_damage.md).
+REACH_MIN_CHANCE = 0.5
+#: Metres of reward per metre of expected distance added to the chance (times the reach):
+#: among gaits about as likely to reach, the one expected nearer the waypoint.
+REACH_TIE_BREAK = 0.01
+
+
+def reach_probability(sq_distance, landing_var, reach) -> np.ndarray:
+    """Probability that a landing ``N(mu, landing_var I_2)`` whose mean is ``sq_distance``
+    (squared) from a target falls within ``reach`` of it: the CDF of a non-central
+    chi-square with 2 degrees of freedom at ``reach^2 / landing_var``, noncentrality
+    ``sq_distance / landing_var``, by Sankaran's normal approximation (within 0.02 of the
+    exact one, at half the cost of its series)."""
+    if not np.isfinite(reach) or reach <= 0:
+        raise ValueError(f'reach must be a finite number > 0, got {reach!r}')
+    var = np.asarray(landing_var, dtype=float)
+    if (var <= 0).any():
+        raise ValueError('landing_var must be > 0')
+    lam = np.maximum(np.asarray(sq_distance, dtype=float), 0.0) / var
+    k = 2.0
+    kl = k + lam
+    k2l = kl + lam
+    h = 1.0 - (2.0 / 3.0) * kl * (k2l + lam) / (k2l * k2l)
+    p = k2l / (kl * kl)
+    m = (h - 1.0) * (1.0 - 3.0 * h)
+    z = ((reach * reach / var / kl) ** h - (1.0 + h * p * (h - 1.0 - 0.5 * (2.0 - h) * m * p))) \
+        / (h * np.sqrt(2.0 * p) * (1.0 + 0.5 * m * p))
+    return special.ndtr(z)
+
+
+def reach_reward(chance, expected, reach) -> np.ndarray:
+    """Specialised reward (m) of gaits with ``chance`` of landing within ``reach`` of the
+    waypoint and ``expected`` distance to it: ``reach x chance``, so that UCB's bonus and
+    the fall cost keep their units, less :data:`REACH_TIE_BREAK` times the expected
+    distance."""
+    return reach * np.asarray(chance, dtype=float) \
+        - REACH_TIE_BREAK * np.asarray(expected, dtype=float)

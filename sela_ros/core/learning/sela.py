@@ -33,6 +33,9 @@ def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
 
 #: With two steps: how many of the best first gaits (by the one-step score) are looked at.
 TWO_STEP_CANDIDATES = 40
+#: With ``acquisition.reach`` and two steps: of each first gait's next gaits, how many of
+#: those expected to land nearest the second waypoint are scored by their chance of reaching.
+REACH_SECOND_CANDIDATES = 64
 #: How much better (log-likelihood ratio) the affine map of the prior mean must have
 #: predicted the steps, each before it was learnt, than the prior mean as it is, to be used.
 AFFINE_MIN_SCORE = 0.0
@@ -515,6 +518,17 @@ class SELA:
         else:
             reward = -(np.sqrt(sq_distance) if landing_var is None
                        else acquisition.expected_distance(sq_distance, landing_var))
+        risk = self._fall.risk(*fall_prior)
+        fall_aware = bool(self._fall.falls or self._prior_fall_rate is not None
+                          or self._stability is not None or fall_prior)
+        chance = None
+        if track is None and landing_var is not None \
+                and self.config.acquisition_reach is not None:
+            chance = self._reach_chance(sq_distance, landing_var,
+                                        risk if fall_aware else None)
+            if chance is not None:
+                reward = acquisition.reach_reward(chance, -reward,
+                                                  self.config.acquisition_reach)
         nearer = None
         if landing_var is not None and self.goal is not None and np.linalg.norm(
                 waypoint - self.goal) <= self.config.goal_eps:
@@ -525,9 +539,6 @@ class SELA:
                 - self.config.goal_eps
         sigma = np.sqrt(var)
         scores = acquisition.ucb_scores(reward, sigma, self.config.acquisition_ucb_alpha)
-        risk = self._fall.risk(*fall_prior)
-        fall_aware = bool(self._fall.falls or self._prior_fall_rate is not None
-                          or self._stability is not None or fall_prior)
         if fall_aware:
             if self.config.fall_risk_cost:
                 scores = scores - self.config.fall_risk_cost * risk
@@ -538,7 +549,8 @@ class SELA:
         if self.config.planner_horizon > 1 and second is not None \
                 and np.linalg.norm(second - waypoint) > 1e-6:
             index = self._two_step_choice(pose, mu_t, scores, risk if fall_aware else None,
-                                          second, index, landing_var, track, waypoint)
+                                          second, index, landing_var, track, waypoint,
+                                          chance)
         gr = mu_t[:, index].copy()
         return Decision(index=index, waypoint=waypoint, predicted_gr=gr,
                         predicted_pose=self.motion.predict(pose, gr),
@@ -594,13 +606,28 @@ class SELA:
             points.append(self.goal)
         return np.array(points)
 
+    def _reach_chance(self, sq_distance, landing_var, risk):
+        """Each gait's probability of landing within ``acquisition.reach`` of the waypoint
+        (``sq_distance`` from it, ``landing_var`` per axis), or None where no gait allowed
+        (``risk`` at most ``fall.risk.threshold``; None: every gait) has
+        :data:`~acquisition.REACH_MIN_CHANCE` of it: the expected distance then chooses."""
+        chance = acquisition.reach_probability(sq_distance, landing_var,
+                                               self.config.acquisition_reach)
+        allowed = chance if risk is None else chance[risk <= self.config.fall_risk_threshold]
+        if not allowed.size or allowed.max() < acquisition.REACH_MIN_CHANCE:
+            return None
+        return chance
+
     def _two_step_choice(self, pose, mu_t, scores, risk, second, index, landing_var=None,
-                         track=None, waypoint=None):
+                         track=None, waypoint=None, chance=None):
         """Among the :data:`TWO_STEP_CANDIDATES` best gaits by ``scores``, the one from whose
         predicted end pose the best next gait (risk weighed as in the first step) lands
         nearest ``second`` (with ``landing_var``, the caution's: in expectation, both
         landings uncertain), or with ``track`` (``acquisition.progress``), furthest along it
-        from ``waypoint`` on; ``index`` if no gait is allowed."""
+        from ``waypoint`` on; with ``chance`` (``acquisition.reach``: each gait's probability
+        of landing within reach of the first waypoint), the one most likely to land within
+        reach of both, falls counted as failures, if any second step has a real chance;
+        ``index`` if no gait is allowed."""
         finite = np.flatnonzero(np.isfinite(scores))
         if not finite.size:
             return index
@@ -622,6 +649,10 @@ class SELA:
             if landing_var is not None:  # the expected distances: both landings' spread
                 cost += 2.0 * landing_var[None, :]
                 cost += 2.0 * landing_var[top][:, None]
+            if chance is not None:
+                both = self._reach_both(cost, landing_var, top, chance, risk)
+                if both is not None:
+                    return int(top[int(np.argmax(both))])
             np.sqrt(cost, out=cost)                                   # the distances, then
         if risk is not None:                                          # + the risk penalty
             cost += penalty
@@ -629,6 +660,32 @@ class SELA:
         if risk is not None:
             value = value - first[top]
         return int(top[int(np.argmax(value))]) if np.isfinite(value).any() else index
+
+    def _reach_both(self, cost, landing_var, top, chance, risk):
+        """(K,) value (m) of the first gaits ``top``: the reach times the probability that
+        the first lands within reach of its waypoint (``chance``) and the best next gait
+        within reach of the second, less both gaits' fall cost (as in one step);
+        ``cost``: (K, M) the expected squared distances of the second landings (both spreads
+        in). None where no second gait allowed has :data:`~acquisition.REACH_MIN_CHANCE`."""
+        c = self.config
+        reach = c.acquisition_reach
+        # Only the second gaits expected nearest matter: a gait far out of reach has no
+        # chance, and the chance of the (K, M) landings would cost more than the rest.
+        near = min(REACH_SECOND_CANDIDATES, cost.shape[1])
+        cols = np.argpartition(cost, near - 1, axis=1)[:, :near]
+        rows = np.arange(len(top))[:, None]
+        var = landing_var[top][:, None] + landing_var[cols]
+        second = acquisition.reach_probability(cost[rows, cols] - 2.0 * var, var, reach)
+        fall = 0.0 if risk is None else c.fall_risk_cost * risk[cols]
+        if risk is not None:
+            second = np.where(risk[cols] <= c.fall_risk_threshold, second, -np.inf)
+        if not second.max() >= acquisition.REACH_MIN_CHANCE:
+            return None
+        best = np.argmax(reach * second - fall, axis=1)
+        both = reach * chance[top] * second[rows[:, 0], best]
+        if risk is not None:
+            both -= c.fall_risk_cost * (risk[top] + risk[cols[rows[:, 0], best]])
+        return both
 
     def _two_step_progress(self, ends, mu_t, track, waypoint, second, top, landing_var):
         """(K, M) progress rewards (:func:`~acquisition.progress_reward`) beyond ``second``

@@ -61,6 +61,11 @@ class SELAConfig:
     # landing puts the robot, less this times its distance off the path
     # (acquisition.progress_reward); None (none): by its distance to the waypoint (the paper's).
     acquisition_progress: float | None = None
+    # m: while caution is on, each gait is scored by the probability that its landing (the
+    # landing variance caution computes) falls within this distance of the waypoint, two steps
+    # ahead the product of both steps' (acquisition.reach_probability); the expected distance
+    # where no gait has a real chance; None (none): caution's expected distance.
+    acquisition_reach: float | None = None
     # m along the path to the waypoint of the reward (hexapod: docs/hexapod_results.md)
     planner_lookahead: float = 0.6
     # Multiple of the robot's shown reach (a high quantile of the planar displacements of the
@@ -137,7 +142,7 @@ NONE = 'none'
 WORDS = {'fall.kernel.sigma': AUTO, 'priors.max.misfit': NONE, 'priors.weights.sd': NONE,
          'acquisition.caution': NONE, 'gp.mean.affine': NONE, 'acquisition.progress': NONE,
          'gp.mean.descriptor': NONE, 'planner.reach': NONE,
-         'gp.hyper.sd': NONE}
+         'gp.hyper.sd': NONE, 'acquisition.reach': NONE}
 #: The parameters whose ``auto`` is the archive's (:func:`sela_ros.core.mission.archive_config`).
 ARCHIVE_AUTO = ('gp.kernel.sigma', 'fall.kernel.sigma', 'planner.horizon')
 

@@ -117,3 +117,32 @@ def test_path_from_cuts_the_track_ahead_of_a_point():
     np.testing.assert_allclose(path_from(path, [0.5, 0.1], 10.0), [[0.5, 0.0], [1.0, 0.0],
                                                                    [1.0, 2.0]])
     np.testing.assert_allclose(path_from(path, [3.0, 3.0], 1.0), [[1.0, 2.0], [1.0, 2.0]])
+
+
+def test_reach_probability_matches_monte_carlo():
+    from sela_ros.core.learning.acquisition import reach_probability
+
+    rng = np.random.default_rng(3)
+    for distance, sd, reach in ((0.0, 0.1, 0.3), (0.3, 0.1, 0.3), (0.5, 0.2, 0.3),
+                                (0.1, 0.05, 0.15), (0.6, 0.05, 0.3), (1.0, 0.4, 0.45),
+                                (0.2, 0.3, 0.1)):
+        landings = rng.normal([distance, 0.0], sd, size=(200_000, 2))
+        sampled = np.mean(np.hypot(landings[:, 0], landings[:, 1]) <= reach)
+        assert reach_probability(distance ** 2, sd ** 2, reach) == pytest.approx(sampled,
+                                                                                 abs=0.02)
+
+
+def test_reach_probability_falls_with_distance_and_spread_out_of_reach():
+    from sela_ros.core.learning.acquisition import reach_probability
+
+    near = reach_probability(np.array([0.0, 0.1, 0.2, 0.3, 0.4]) ** 2, 0.05 ** 2, 0.3)
+    assert np.all(np.diff(near) < 0) and near[0] > 0.99 and near[-1] < 0.03
+    # Within reach, a wider spread only loses chance; far out of reach it gains some.
+    spread = reach_probability(0.1 ** 2, np.array([0.05, 0.1, 0.2, 0.4]) ** 2, 0.3)
+    assert np.all(np.diff(spread) < 0)
+    far = reach_probability(0.8 ** 2, np.array([0.05, 0.4]) ** 2, 0.3)
+    assert far[0] < 1e-6 < far[1]
+    with pytest.raises(ValueError, match='reach'):
+        reach_probability(0.1, 0.01, 0.0)
+    with pytest.raises(ValueError, match='landing_var'):
+        reach_probability(0.1, 0.0, 0.3)

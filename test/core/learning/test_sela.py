@@ -47,7 +47,8 @@ def test_config_dotted_names():
     assert set(c.to_dict()) == {'gp.kernel.sigma', 'gp.kernel.variance', 'gp.noise',
                                 'gp.mean.affine', 'gp.mean.descriptor', 'gp.hyper.sd',
                                 'acquisition.ucb.alpha', 'acquisition.caution',
-                                'acquisition.progress', 'planner.lookahead', 'goal.eps',
+                                'acquisition.progress', 'acquisition.reach',
+                                'planner.lookahead', 'goal.eps',
                                 'fall.risk.threshold', 'fall.kernel.sigma', 'fall.risk.cost',
                                 'priors.max.misfit', 'priors.max.misfit.reproduced',
                                 'priors.weights.sd', 'planner.horizon', 'planner.reach'}
@@ -79,7 +80,7 @@ def test_auto_and_none_are_words_not_numbers():
     for field in ('gp_kernel_sigma', 'fall_kernel_sigma', 'priors_max_misfit',
                   'priors_weights_sd', 'acquisition_caution', 'gp_mean_affine',
                   'acquisition_progress', 'gp_mean_descriptor', 'planner_reach',
-                  'gp_hyper_sd'):
+                  'gp_hyper_sd', 'acquisition_reach'):
         with pytest.raises(ValueError, match='must be'):
             SELAConfig(**{field: 0.0})
     with pytest.raises(ValueError, match='fall.kernel.sigma'):
@@ -418,3 +419,81 @@ def test_progress_two_steps_ahead_leaves_the_robot_facing_the_path():
 
     assert choice(1) == 0  # one step: the furthest along
     assert choice(2) == 2  # two: the longer straight step, then the long one
+
+
+def _reach_sela(prior, reach, sigma=0.02, horizon=1):
+    """SELA over gaits on a 1-D map far apart (no gait's step says anything of another's),
+    caution on from the first step, no UCB bonus; the goal 2 m east (waypoint 0.6 m)."""
+    return SELA(np.linspace(0.0, 1.0, len(prior))[:, None], np.asarray(prior, dtype=float),
+                PointMotion(), goal=(2.0, 0.0),
+                config={'gp.kernel.sigma': sigma, 'acquisition.ucb.alpha': 0.0,
+                        'acquisition.caution': 0.01, 'gp.mean.affine': 'none',
+                        'acquisition.reach': reach, 'planner.horizon': horizon})
+
+
+def test_reach_a_gait_that_surely_stays_put_does_not_beat_one_that_may_reach():
+    # Gait 0 goes 0.1 m, as predicted; gaits 1-5 were predicted to reach the waypoint and
+    # stayed put; gaits 6-11 are predicted to reach it, untried.
+    prior = [[0.1, 0.0]] + [[0.6, 0.0]] * 11
+
+    def choice(reach):
+        sela = _reach_sela(prior, reach)
+        sela.tell(0, [0.1, 0.0])
+        for i in range(1, 6):
+            sela.tell(i, [0.0, 0.0])
+        return sela.ask(np.zeros(2))
+
+    # By the expected distance the sure short step (0.5 m from the waypoint, surely) beats an
+    # untried gait that lands anywhere within 0.36 m (per axis) of the waypoint.
+    assert choice('none').index == 0
+    # Gait 0 is unlikely to land within 0.45 m of the waypoint; an untried one is likely to.
+    decision = choice(0.45)
+    assert decision.index in range(6, 12)
+    assert 0.5 * 0.45 - 0.01 < decision.reward < 0.6 * 0.45  # reach x a chance of 0.5-0.6
+
+
+def test_reach_a_fast_sure_gait_beats_a_fast_unsure_one():
+    # Gait 0 was tried and lands on the waypoint; gait 2 is predicted to, untried, while
+    # gait 1 showed the untried gaits land 0.3 m from where they are predicted.
+    sela = _reach_sela([[0.6, 0.0], [0.6, 0.3], [0.6, 0.0]], 0.3)
+    sela.tell(0, [0.6, 0.0])
+    sela.tell(1, [0.6, 0.0])
+    decision = sela.ask(np.zeros(2))
+    assert decision.index == 0 and decision.reward > 0.29
+
+
+def test_reach_falls_back_to_the_expected_distance_where_no_gait_has_a_chance():
+    # Every gait goes at most 0.15 m: none can land within 0.15 m of a waypoint 0.6 m away.
+    prior = [[0.05, 0.0], [0.15, 0.0], [0.1, 0.05], [0.0, 0.0]]
+    plain, aprol = _reach_sela(prior, 'none'), _reach_sela(prior, 0.15)
+    for sela in (plain, aprol):
+        sela.tell(3, [0.0, 0.0])
+    assert aprol.ask(np.zeros(2)).index == plain.ask(np.zeros(2)).index == 1
+    assert aprol.ask(np.zeros(2)).reward == plain.ask(np.zeros(2)).reward
+
+
+def test_reach_two_steps_ahead_prefers_the_first_step_from_which_the_second_can_reach():
+    """Gaits (dx, dy, dyaw): 0.6 m ahead turning 1.5 rad, 0.5 m ahead straight, 0.1 m ahead.
+    Both long steps are likely to land within 0.3 m of the first waypoint; only the straight
+    one leaves the robot where a second gait can land within reach of the second."""
+    gr = np.array([[0.6, 0.0, 1.5], [0.5, 0.0, 0.0], [0.1, 0.0, 0.0]])
+
+    def choice(horizon):
+        sela = SELA(np.array([[0.0], [0.5], [1.0]]), gr, SE2Motion(), goal=(3.0, 0.0),
+                    config={'gp.kernel.sigma': 0.02, 'acquisition.ucb.alpha': 0.0,
+                            'acquisition.caution': 0.01, 'gp.mean.affine': 'none',
+                            'acquisition.reach': 0.3, 'planner.horizon': horizon})
+        for i in range(3):
+            sela.tell(i, gr[i])
+        return sela.ask(np.zeros(3), waypoint=[0.6, 0.0], next_waypoint_xy=[1.2, 0.0]).index
+
+    assert choice(1) == 0  # one step: the turning one lands on the waypoint
+    assert choice(2) == 1
+
+
+def test_reach_is_a_parameter_with_a_word_for_off():
+    assert SELAConfig().acquisition_reach is None
+    assert SELAConfig().to_dict()['acquisition.reach'] == 'none'
+    assert SELAConfig.from_dict({'acquisition.reach': 0.3}).acquisition_reach == 0.3
+    with pytest.raises(ValueError, match='acquisition.reach'):
+        SELAConfig.from_dict({'acquisition.reach': -0.3})
