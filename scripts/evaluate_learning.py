@@ -62,7 +62,7 @@ PAPER_CASE = ('remove:middle_right', (2.0, 2.0), 0)
 #: The toy's figures with the paper's rules, noise 0.01 m (docs/toy_results.md): SELA home in
 #: every one of 50 replicates, a median of 29 task steps.
 TOY_HOME, TOY_MEDIAN_STEPS = 50, 29
-#: The issue's targets.
+#: The targets a design of learning is judged by (docs/learning_the_damage.md).
 RATIO, HOME, TWO_LEGS_HOME, NEIGHBOURS_HOME, PAIR_RATIO, FALLS_SHARE = \
     1.40, 0.98, 0.90, 0.80, 2.5, 0.60
 DEVIATIONS_HOME, DEVIATIONS_RATIO = 0.95, 1.5
@@ -137,7 +137,7 @@ def _pct(x):
 
 
 def targets(parts, oracle, baseline, method, toy=None, library_labels=None):
-    """The issue's targets against ``parts`` (``{part: its runs}``; of the library part, only
+    """The targets against ``parts`` (``{part: its runs}``; of the library part, only
     the cases ``library_labels`` where given): a list of :class:`Target`."""
     out = []
     lib = [r for r in parts.get('library', []) if r['method'] == method
