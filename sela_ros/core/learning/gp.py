@@ -126,9 +126,6 @@ class CandidateSetGP:
         self._sq_norms = np.sum(candidates * candidates, axis=1)
         self._chol = _GrowingCholesky(prior_mean.shape[1])
         self._V = np.zeros((8, candidates.shape[0]))
-        # (N, M) squared distances of the steps to every candidate: a new kernel length is
-        # then one exp over them (set_hyper), no distance computed again.
-        self._sq = np.zeros((8, candidates.shape[0]))
         # Outputs stored as rows (D, M): per-output updates are contiguous axpy's, much
         # faster than broadcasting over an (M, D) array with a small D.
         self._mu_t = np.ascontiguousarray(prior_mean.T)
@@ -156,19 +153,25 @@ class CandidateSetGP:
     def observed(self) -> np.ndarray:
         return np.array(self._Y).reshape(-1, self.output_dim)
 
-    def _sq_row(self, index):
+    def _kernel_row(self, index):
         x = self.candidates[index]
         sq = self._sq_norms + self._sq_norms[index] - 2.0 * (self.candidates @ x)
         np.maximum(sq, 0.0, out=sq)
-        return sq
-
-    def _kernel(self, sq):
         return self.variance * np.exp((-0.5 / (self.sigma * self.sigma)) * sq)
+
+    def _sq_rows(self, idx):
+        """``(N, M)`` squared distances of the candidates ``idx`` to every candidate."""
+        sq = self._sq_norms[idx][:, None] + self._sq_norms[None, :] \
+            - 2.0 * (self.candidates[idx] @ self.candidates.T)
+        np.maximum(sq, 0.0, out=sq)
+        return sq
 
     @property
     def sq_distances(self) -> np.ndarray:
-        """``(N, N)`` squared distances between the observed inputs (a view)."""
-        return self._sq[:self.num_samples][:, self._indices]
+        """``(N, N)`` squared distances between the observed inputs."""
+        x = self.candidates[self._indices]
+        norms = self._sq_norms[self._indices]
+        return np.maximum(norms[:, None] + norms[None, :] - 2.0 * (x @ x.T), 0.0)
 
     def add_sample(self, index: int, y) -> None:
         """Add the observation ``y`` (D,) of candidate ``index``; O(M N)."""
@@ -182,18 +185,13 @@ class CandidateSetGP:
             raise ValueError(f'y must have shape ({self.output_dim},), got {y.shape}')
         _check_finite('y', y)
         n = self._chol.n
-        sq = self._sq_row(index)
-        krow = self._kernel(sq)
+        krow = self._kernel_row(index)
         k_vec = krow[self._indices] if n else np.zeros(0)
         row, d = self._chol.append(k_vec, self.variance + self.noise, y - self.prior[index])
         if n == self._V.shape[0]:
             V = np.zeros((2 * n, self.num_candidates))
             V[:n] = self._V[:n]
             self._V = V
-            sq_rows = np.zeros((2 * n, self.num_candidates))
-            sq_rows[:n] = self._sq[:n]
-            self._sq = sq_rows
-        self._sq[n] = sq
         v = krow - row @ self._V[:n] if n else krow
         v /= d
         self._V[n] = v
@@ -217,16 +215,13 @@ class CandidateSetGP:
         _check_finite('y', ys)
         if not len(idx):
             return
-        sq = self._sq_norms[idx][:, None] + self._sq_norms[None, :] \
-            - 2.0 * (self.candidates[idx] @ self.candidates.T)
-        np.maximum(sq, 0.0, out=sq)
-        self._factorise(idx, ys, sq)
+        self._factorise(idx, ys, self._sq_rows(idx))
 
     def set_hyper(self, sigma: float, variance: float) -> None:
         """Go on with the kernel length ``sigma`` and signal variance ``variance``: the
         observations are learnt again under them, as a GP built with them would have learnt
-        them (one Cholesky factorisation and one triangular solve over the archive, O(M N^2);
-        the squared distances are kept, so only their exp is new)."""
+        them (one Cholesky factorisation and one triangular solve over the archive,
+        O(M N^2))."""
         _check_hyper(sigma, variance, self.noise)
         sigma, variance = float(sigma), float(variance)
         if sigma == self.sigma and variance == self.variance:
@@ -236,14 +231,13 @@ class CandidateSetGP:
         if not n:
             self._var = np.full(self.num_candidates, self.variance)
             return
-        # _factorise keeps a copy of the distances and takes the exp over this buffer.
-        self._factorise(np.asarray(self._indices, dtype=int), np.array(self._Y), self._sq[:n])
+        idx = np.asarray(self._indices, dtype=int)
+        self._factorise(idx, np.array(self._Y), self._sq_rows(idx))
 
     def _factorise(self, idx, ys, sq):
         """Learn ``ys`` (N, D) at ``idx`` from scratch, ``sq`` (N, M) their squared
-        distances to every candidate (taken over)."""
+        distances to every candidate (overwritten)."""
         n = len(idx)
-        self._sq = sq.copy() if n >= 8 else np.vstack([sq, np.zeros((8 - n, sq.shape[1]))])
         k = np.exp((-0.5 / (self.sigma * self.sigma)) * sq, out=sq)
         k *= self.variance  # (N, M): k(X_obs, X*)
         k_nn = k[:, idx] + self.noise * np.eye(n)
