@@ -30,7 +30,9 @@ fallen robot righted where it lies. Methods:
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
   measured with its own condition and the conditions near it left out (:func:`leave_out`);
 * ``library-own``: the tables mixed from the whole library, the damage's own condition in
-  (a damage the library foresaw: what a table for it gives);
+  (a damage the library foresaw: what a table for it gives); ``library-own-caution``: the
+  same with ``caution``'s settings (what a self-model whose hypotheses are the library's
+  conditions gives at most, its simulations all done in advance);
 * ``bound-own``: no damage priors, the GPs' prior mean the damage's own table (its library
   condition, or its whole oracle table): SELA on a damage known in advance;
 * ``bound-fit``: no damage priors, the prior mean the best mixture of the library's tables
@@ -98,6 +100,8 @@ GOALS = ((2.0, 2.0), (-2.0, 1.5), (1.5, -2.0), (2.5, 0.5))
 METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.sd': 1.0},
            'none': None, 'library-select': {'priors.weights.sd': 'none'},
            'library': {'priors.weights.sd': 1.0}, 'library-own': {'priors.weights.sd': 1.0},
+           'library-own-caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                                   'gp.mean.affine': 'none'},
            'oracle': None, 'oracle-restricted': None, 'bound-own': None, 'bound-fit': None,
            'bound-fit-signed': None,
            'caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
@@ -167,13 +171,18 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
 #: of untried gaits that disappointed (a patch of ``SELA._posterior``: the command is in
 #: docs/learning_the_damage.md); ``second-inflated``: ``caution`` with the second of two steps
 #: always scored by the expected distance under the untried gaits' learnt error, caution on or
-#: not (a patch of ``SELA._two_step_choice``, the command there too).
+#: not (a patch of ``SELA._two_step_choice``, the command there too);
+#: ``slow-0.55-affine-0.5-aprol-0.3``: ``affine-0.5-aprol-0.3`` with the affine map and the
+#: chance of reaching in use only once three steps that stood covered at most 0.55 of the
+#: distance the prior in use predicted for them (a patch of ``SELA._affine_weights`` and
+#: ``SELA.ask``: the command is in docs/learning_the_damage.md).
 REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-1.0-lcb',
                  'affine-0.5-progress-1.0-h1-lcb', 'affine-0.5-descriptor-1.0-margin-3',
                  'reach-1.5-max-floor-0.3', 'affine-0.5-reach-1.5-max-floor-0.3',
                  'hyper-0.5-falls-in', 'hyper-1.0-falls-in', 'hyper-0.5-affine-falls-in',
                  'hyper-0.5-length', 'hyper-0.5-configured-variance',
-                 'aprol-0.3-floor-0.1', 'disappointment', 'second-inflated')
+                 'aprol-0.3-floor-0.1', 'disappointment', 'second-inflated',
+                 'slow-0.55-affine-0.5-aprol-0.3')
 #: The oracle (the experiments' ``oracle``: it knows the damaged robot's outcomes and its true
 #: pose) with what is known of the damage (:func:`build_library.known_outcomes`): a whole
 #: table, else the gaits the library evaluated; ``oracle-restricted``: a whole table cut to
@@ -181,7 +190,9 @@ REPORTED_ONLY = ('affine-0.5-ungated', 'progress-1.0-lcb', 'affine-0.5-progress-
 ORACLE_METHODS = ('oracle', 'oracle-restricted')
 #: Methods that take their tables from ``--library``, each damage with its own condition and
 #: its near duplicates left out (:func:`leave_out`).
-LIBRARY_METHODS = ('library-select', 'library', 'library-own')
+LIBRARY_METHODS = ('library-select', 'library', 'library-own', 'library-own-caution')
+#: Methods given the whole library, each damage's own condition in (a damage it foresaw).
+OWN_LIBRARY_METHODS = ('library-own', 'library-own-caution')
 #: Methods whose prior mean is a table of the damage (:func:`bound_table`; need --library).
 BOUND_METHODS = ('bound-own', 'bound-fit', 'bound-fit-signed')
 #: Two conditions are near duplicates when their tables differ by less than this, rms over
@@ -289,7 +300,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
         if prior_mean is None:
             return None
         priors_value, leave_out_own = 'none', False
-    elif method == 'library-own':
+    elif method in OWN_LIBRARY_METHODS:
         priors_value, leave_out_own = args.library, False
     elif method in LIBRARY_METHODS:
         priors_value, left_out = library[label]
@@ -312,7 +323,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               reach=settings.get('planner.reach', 'none'),
               **extra)
     out = run_method(job)
-    foreseen = is_foreseen(label, method) if method in ('library-own', 'bound-own') else (
+    foreseen = is_foreseen(label, method) if method in (*OWN_LIBRARY_METHODS, 'bound-own') else (
         priors_value == 'auto' and not leave_out_own and damage in shipped)
     return {'case': label, 'damage': damage, 'foreseen': foreseen, 'goal': list(goal),
             'method': method, 'seed': seed, 'success': out['success'], 'steps': out['steps'],
@@ -627,9 +638,9 @@ def table(rows):
 
 def is_foreseen(case, method):
     """Whether ``method`` ran ``case`` with a table of that damage: a foreseen case, or a
-    condition of the library run with the whole library (``library-own``)."""
+    condition of the library run with the whole library (:data:`OWN_LIBRARY_METHODS`)."""
     return case in {c[0] for c in FORESEEN} or method == 'bound-own' or (
-        method == 'library-own' and case.endswith('/own-left-out'))
+        method in OWN_LIBRARY_METHODS and case.endswith('/own-left-out'))
 
 
 def totals(rows, runs, methods):

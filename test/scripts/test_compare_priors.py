@@ -47,6 +47,10 @@ def test_the_whole_library_foresees_its_own_conditions_only(compare):
     """``library-own`` runs a condition with its own table in (foreseen); a damage between
     the grid points has none, and any other method's own-left-out case is unforeseen."""
     assert compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'library-own')
+    assert compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'library-own-caution')
+    assert not compare.is_foreseen('shorten:front_left:0.5', 'library-own-caution')
+    assert compare.METHODS['library-own-caution']['acquisition.caution'] \
+        == compare.METHODS['caution']['acquisition.caution']
     assert not compare.is_foreseen('shorten:front_left:0.5', 'library-own')
     assert not compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'library')
     assert not compare.is_foreseen('remove:front_left/own-left-out', 'mixture')
