@@ -2,7 +2,9 @@
 map building (picklable, so worker processes of the map builder call it)."""
 from __future__ import annotations
 
+import multiprocessing
 from collections import OrderedDict
+from concurrent.futures import ProcessPoolExecutor
 
 from sim_bridge.robots import get_robot
 from sim_bridge.settings import SIM_DEFAULTS, simulator_settings
@@ -46,3 +48,13 @@ def evaluate_gait(params, damage='intact', dt: float = SIM_DEFAULTS['dt'],
     sim = _cached_simulator(damage, dt, gait_duration, solver_iterations, robot)
     sim.reset(clock=True)
     return sim.execute(params)
+
+
+def worker_pool(workers: int) -> ProcessPoolExecutor:
+    """A pool of ``workers`` processes that start from a fresh ``forkserver`` (``spawn``
+    where unavailable), never from a fork of the caller: a forked worker would inherit the
+    caller's PyBullet connections and threads (a test session's, a notebook's)."""
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context('forkserver' if 'forkserver' in methods
+                                          else 'spawn')
+    return ProcessPoolExecutor(max_workers=workers, mp_context=context)

@@ -21,7 +21,6 @@ from __future__ import annotations
 import hashlib
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,7 @@ import numpy as np
 from sela_ros.core.learning import params_checksum
 from sela_ros.core.storage import atomic_write
 from sim_bridge.environment import ObservedHexapod
-from sim_bridge.evaluation import evaluate_gait
+from sim_bridge.evaluation import evaluate_gait, worker_pool
 from sim_bridge.robots import get_robot
 from sim_bridge.settings import SIM_DEFAULTS, simulator_settings
 from sim_bridge.simulator import Simulator
@@ -176,7 +175,7 @@ def compute_oracle_table(params, damage, workers=1, dt=1.0 / 240.0, gait_duratio
     if workers <= 1 or len(chunks) <= 1:
         rows = [_evaluate_chunk(j) for j in jobs]
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        with worker_pool(workers) as pool:
             rows = list(pool.map(_evaluate_chunk, jobs))
     table = np.concatenate(rows) if rows else np.zeros((0, 4))
     return table[:, :3], table[:, 3].astype(bool)
@@ -258,7 +257,7 @@ def chained_runs(params, damage, gaits, predecessors, workers=1, dt=1.0 / 240.0,
     if workers <= 1 or len(jobs) <= 1:
         rows = [_chained_chunk(j) for j in jobs]
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        with worker_pool(workers) as pool:
             rows = list(pool.map(_chained_chunk, jobs))
     out = np.concatenate(rows) if rows else np.zeros((0, 2), int)
     atomic_write(path, lambda handle: np.savez(handle, runs=out[:, 0], falls=out[:, 1]))

@@ -88,6 +88,7 @@ class Simulator:
             raise RuntimeError('gui=True needs a display (DISPLAY is not set); '
                                'use gui=False for headless DIRECT mode')
         self._client = p.connect(p.GUI if gui else p.DIRECT)
+        self._owner = os.getpid()
         if self._client < 0:
             raise RuntimeError('could not connect to a PyBullet physics server')
         self._sim_time = 0.0
@@ -103,12 +104,14 @@ class Simulator:
     # -- life cycle
 
     def close(self) -> None:
-        """Disconnect the private physics client (idempotent)."""
+        """Disconnect the private physics client (idempotent). Only the process that
+        connected it does: a forked child holds a copy of the client, gone with the child."""
         if getattr(self, '_client', -1) >= 0:
-            try:
-                p.disconnect(physicsClientId=self._client)
-            except p.error:
-                pass
+            if getattr(self, '_owner', None) == os.getpid():
+                try:
+                    p.disconnect(physicsClientId=self._client)
+                except p.error:
+                    pass
             self._client = -1
 
     def __del__(self):

@@ -37,7 +37,6 @@ import argparse
 import dataclasses
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -394,6 +393,7 @@ def step_detail(record) -> dict:
 def run(args, progress=None) -> dict:
     """Run the experiment described by ``args``; returns the results.json document."""
     from sela_ros.core.storage import load_archive
+    from sim_bridge.evaluation import worker_pool
     from sim_bridge.experiment_env import archive_checksum, oracle_table
     from sim_bridge.robots import robot_of
 
@@ -454,7 +454,7 @@ def run(args, progress=None) -> dict:
                 progress()
     else:
         # Jobs are (replicate, method) pairs in replicate order, so progress is in order too.
-        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        with worker_pool(args.workers) as pool:
             for i, r in enumerate(pool.map(run_method, jobs)):
                 results.append(r)
                 if progress and (i + 1) % per_rep == 0:

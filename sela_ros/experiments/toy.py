@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -53,7 +52,9 @@ def run(args, progress=None) -> dict:
             if progress:
                 progress()
     else:
-        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        from sim_bridge.evaluation import worker_pool
+
+        with worker_pool(args.workers) as pool:
             for r in pool.map(_run_one, jobs):
                 results.append(r)
                 if progress:

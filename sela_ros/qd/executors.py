@@ -6,14 +6,13 @@ The batch travels in a few chunks per worker.
 """
 from __future__ import annotations
 
-import multiprocessing
 import os
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 from sela_ros.qd.evaluators import EvaluationResult
+from sim_bridge.evaluation import worker_pool
 
 
 def _evaluate_chunk(evaluate: Callable, chunk: np.ndarray) -> list[EvaluationResult]:
@@ -54,10 +53,7 @@ class ProcessPoolEvaluator(SerialEvaluator):
         if workers < 1:
             raise ValueError(f'workers must be >= 1, got {workers}')
         self.workers = workers
-        methods = multiprocessing.get_all_start_methods()
-        context = multiprocessing.get_context('forkserver' if 'forkserver' in methods
-                                              else 'spawn')
-        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        self._pool = worker_pool(workers)
 
     def map(self, evaluate: Callable, solutions: np.ndarray) -> list[EvaluationResult]:
         chunks = _chunks(solutions, self.workers)

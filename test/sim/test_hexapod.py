@@ -357,3 +357,32 @@ def test_the_observation_noise_can_change_and_a_bad_one_is_refused():
         env.set_noise_std(0.5)
         env.reset()
         assert np.linalg.norm(env.observed_pose()[:2] - env.true_pose()[:2]) > 1e-3
+
+
+def test_a_forked_child_leaves_the_physics_client_to_the_process_that_connected_it():
+    import os
+
+    robot = hx.Hexapod()
+    client = robot._client
+    child = os.fork()
+    if child == 0:  # the child: closing its copy of the robot must not disconnect
+        calls = []
+        p.disconnect = lambda **kwargs: calls.append(kwargs)
+        robot.close()
+        os._exit(0 if not calls and robot._client == -1 else 1)
+    _, status = os.waitpid(child, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert p.getConnectionInfo(physicsClientId=client)['isConnected']
+    robot.execute(STRAIGHT)
+    robot.close()  # the owner's close does disconnect
+    assert not p.getConnectionInfo(physicsClientId=client)['isConnected']
+
+
+def test_worker_pools_start_fresh_never_forked_from_the_caller():
+    import os
+
+    from sim_bridge.evaluation import worker_pool
+
+    with worker_pool(1) as pool:
+        # A forked worker's parent would be this process; a fresh one's is the server.
+        assert pool.submit(os.getppid).result(timeout=120) != os.getpid()
