@@ -305,7 +305,11 @@ def test_falls_are_told_from_the_imu_as_the_direct_path_tells_them():
         gaits = [archive.params[0], _forward_gait(), archive.params[0]]
         for k, gait in enumerate(gaits):
             rec.command(gait, 100 + k)
-        client.spin_until(lambda: len(rec.outcomes) == len(gaits), 120, 'the outcomes')
+        try:
+            client.spin_until(lambda: len(rec.outcomes) == len(gaits), 120, 'the outcomes')
+        except TimeoutError as exc:  # what each node said, to tell why
+            raise AssertionError((str(exc), [o.behavior_id for o in rec.outcomes],
+                                  rec.errors, nodes.logs())) from None
         physics = read_archive_settings(default_archive_path())
         env = ObservedHexapod(Hexapod(damage=damage, **physics), noise_std=0.01, seed=seed)
         try:
