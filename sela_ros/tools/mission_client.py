@@ -225,7 +225,8 @@ class MissionClient:
             raise RuntimeError(f'the adapter rejected the {action.name} goal (no archive '
                                'loaded?)')
         self.goal_handle, self._goal_id = handle, bytes(handle.goal_id.uuid).hex()
-        handle.get_result_async().add_done_callback(self._action_done)
+        handle.get_result_async().add_done_callback(
+            lambda future, handle=handle: self._action_done(handle, future))
         # Its first statuses may have been heard before the goal's answer: read them again.
         for status in [s for s in self.statuses if s.name == ifc.MISSION_STATUS]:
             self._read(status, again=True)
@@ -236,8 +237,11 @@ class MissionClient:
             done = self.action_result.status == GoalStatus.STATUS_SUCCEEDED
             self.result = MissionResult(done, 0, 0, r.error_msg, {'error_code': r.error_code})
 
-    def _action_done(self, future):
-        self.action_result = future.result()
+    def _action_done(self, handle, future):
+        # Only the goal sent last: an earlier goal's result can come after its mission's
+        # statuses, once the next goal is on its way, and is not that goal's.
+        if handle is self.goal_handle:
+            self.action_result = future.result()
 
     def cancel_task(self, timeout=30.0):
         """Cancel the goal sent last: the mission ends after the running gait."""

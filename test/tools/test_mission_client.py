@@ -93,3 +93,61 @@ def test_a_goal_whose_request_is_lost_is_sent_again_until_answered(monkeypatch):
     client._actions[ifc.NAVIGATE_TO_POSE.name] = _LossyActionClient(lost=100)
     with pytest.raises(TimeoutError, match='after 25 s waiting for the answer'):
         client._send_goal(ifc.NAVIGATE_TO_POSE, 'goal', timeout=25)
+
+
+class _Handle:
+    def __init__(self, number):
+        from types import SimpleNamespace
+
+        from rclpy.task import Future
+
+        self.accepted = True
+        self.goal_id = SimpleNamespace(uuid=bytes([number] * 16))
+        self.result = Future()
+
+    def get_result_async(self):
+        return self.result
+
+
+class _Server:
+    """An action client whose goals are all answered at once, accepted."""
+
+    def __init__(self):
+        self.handles = []
+
+    def send_goal_async(self, goal):
+        from rclpy.task import Future
+
+        self.handles.append(_Handle(len(self.handles) + 1))
+        future = Future()
+        future.set_result(self.handles[-1])
+        return future
+
+
+def test_an_earlier_goals_late_result_is_not_the_next_goals():
+    from types import SimpleNamespace
+
+    from action_msgs.msg import GoalStatus
+
+    events = []
+    client = MissionClient(_Node(), lambda t: events.pop(0)() if events else None)
+    client.wait_until_ready = lambda timeout: None
+    server = client._actions[ifc.NAVIGATE_TO_POSE.name] = _Server()
+    first, second = bytes([1] * 16).hex(), bytes([2] * 16).hex()
+    events.append(lambda: client._diagnostics(_status(mission=1, steps=0, adaptations=0,
+                                                      goal_id=first)))
+    client.go_to_pose(1.6, 1.0, timeout=5)
+    client._diagnostics(_status(mission=1, success=True, steps=3, adaptations=0,
+                                goal_id=first))
+    assert client.get_result().success
+    # The next goal: the first one's action result comes while it is being taken.
+    done = SimpleNamespace(status=GoalStatus.STATUS_SUCCEEDED,
+                           result=SimpleNamespace(error_msg='', error_code=0))
+    events += [lambda: server.handles[0].result.set_result(done),
+               lambda: client._diagnostics(_status(mission=2, steps=0, adaptations=0,
+                                                   goal_id=second))]
+    client.go_to_pose(0.6, 1.0, timeout=5)
+    assert client._mission == '2' and client.get_result() is None
+    assert client.action_result is None
+    server.handles[1].result.set_result(done)  # its own result is taken
+    assert client.action_result is done
