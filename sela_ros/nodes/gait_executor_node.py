@@ -20,10 +20,12 @@ robot stamps them (a simulator's /clock or the wall); the timeouts are wall time
 Refusals (an ERROR on diagnostics and in the log; no trajectory, no outcome): parameters
 out of [0, 1], a trajectory beyond the joints' limits (``joint_limits``), no
 ``joint_trajectory_controller`` subscribed to the topic, and odometry (or IMU) that is stale or
-absent when the gait would start. Odometry that stops during a gait, or a gait whose end is
-not seen within ``gait_timeout``, ends it without an outcome, reported the same way. With no
-outcome, the adapter sends the same command again after its ``outcome_timeout`` (10 s): a
-robot whose odometry comes back carries on, one whose odometry stays away does not move.
+absent when the gait would start (a gait sent within ``odometry.timeout`` of the executor's
+start waits that long for the first message). Odometry that stops during a gait, or a gait
+whose end is not seen within ``gait_timeout``, ends it without an outcome, reported the same
+way. With no outcome, the adapter sends the same command again after its
+``outcome_timeout`` (10 s): a robot whose odometry comes back carries on, one whose odometry
+stays away does not move.
 """
 import math
 import time
@@ -160,6 +162,7 @@ class GaitExecutor(Node):
         self.finished = None  # wall time the last gait ended
         self.imu = None
         self._next_auto_id = 1_000_000_000
+        self.started = time.monotonic()
 
         self.trajectory_pub = ifc.publisher(self, ifc.JOINT_TRAJECTORY,
                                             name=self.trajectory_topic)
@@ -270,7 +273,10 @@ class GaitExecutor(Node):
             if not topic:
                 continue
             if sample is None and self.finished is None:
-                return f'no {what} received on {topic}'
+                if now - self.started <= self.odom_timeout:
+                    continue  # just started: its subscription may not have matched yet
+                return (f'no {what} received on {topic} since the executor started '
+                        f'(odometry.timeout {self.odom_timeout:g} s)')
             last = max(sample[0] if sample is not None else -math.inf,
                        self.finished if self.gait is None and self.finished else -math.inf)
             if now - last > self.odom_timeout:
@@ -284,7 +290,8 @@ class GaitExecutor(Node):
         if problem is not None:
             raise _Refused('odometry', f'{problem}; the adapter sends it again after its '
                            'outcome_timeout')
-        return self.odom is not None and (self.finished is None or self.odom[0] > self.finished)
+        return (self.odom is not None and (not self.imu_topic or self.imu is not None)
+                and (self.finished is None or self.odom[0] > self.finished))
 
     def _start(self, behavior_id, times, positions, now):
         refused = f'gait {behavior_id} not played'
