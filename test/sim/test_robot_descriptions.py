@@ -44,7 +44,9 @@ def test_the_hexapod_s_gaits_end_exactly_where_they_always_did(damage, gait, rew
     gaits = {'tripod': tripod_gait(), 'tripod_left': tripod_gait(turn=1.0)}
     gaits.update({f'random_{i}': g for i, g in enumerate(_random_gaits())})
     outcome = evaluate_gait(gaits[gait], damage)
-    assert outcome.generic_reward.tolist() == reward
+    # To 1e-12 (m, rad), far below any change of the physics: the last bits of the
+    # trigonometry differ between machines' math libraries. The foot contacts are exact.
+    np.testing.assert_allclose(outcome.generic_reward, reward, rtol=0, atol=1e-12)
     assert outcome.duty_factors.tolist() == duty
     assert not outcome.fallen
 
