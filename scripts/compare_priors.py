@@ -148,7 +148,13 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            **{f'affine-0.5-aprol-{r}': {'priors.weights.sd': 1.0,
                                         'acquisition.caution': 0.15, 'gp.mean.affine': 0.5,
                                         'acquisition.reach': r}
-              for r in (0.15, 0.3, 0.45)}}
+              for r in (0.15, 0.3, 0.45)},
+           **{f'fallcost-{c}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                                'gp.mean.affine': 'none', 'fall.risk.cost': c}
+              for c in (2.0,)},
+           **{f'affine-0.5-aprol-0.3-fallcost-{c}': {
+               'priors.weights.sd': 1.0, 'acquisition.caution': 0.15, 'gp.mean.affine': 0.5,
+               'acquisition.reach': 0.3, 'fall.risk.cost': c} for c in (2.0,)}}
 #: Methods only reported (``--report-only``), their runs made by an earlier version of the code:
 #: ``affine-0.5-ungated``: the affine map of the prior mean always in use once a step stood
 #: (commit "learning: an affine map of the prior mean learnt from the steps; ...");
