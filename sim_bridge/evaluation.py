@@ -1,5 +1,6 @@
 """One gait from a fresh standing start, on cached simulators: the robot's evaluation for
-map building (picklable, so worker processes of the map builder call it)."""
+map building (picklable, so worker processes of the map builder call it), and the pool of
+fresh worker processes that the map builder and the experiments run such work in."""
 from __future__ import annotations
 
 import multiprocessing
