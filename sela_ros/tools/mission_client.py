@@ -219,6 +219,7 @@ class MissionClient:
     def _send(self, action, goal, timeout):
         self.wait_until_ready(timeout)
         self.result = self.action_result = self._mission = self._goal_id = None
+        self.goal_handle = None  # an earlier goal's result, late, is nobody's now
         self.goals_reached = []
         handle = self._send_goal(action, goal, timeout)
         if not handle.accepted:

@@ -77,9 +77,10 @@ def test_goals_are_reached_and_nothing_learned_is_lost_while_nodes_are_killed():
             # Reached for real: the simulator's own pose, once it has published it.
             heard = len(odom)
             client.spin_until(lambda heard=heard: len(odom) > heard, 30, 'the true pose')
-            assert np.hypot(*(odom[-1][:2] - np.array(goal))) < TRUE_POSE_TOLERANCE, \
-                (goal, odom[-1], killed, mission.get_result().values,
-                 [(s.step, s.pose, s.end_pose) for s in mission.steps[-4:]], nodes.logs())
+            assert np.hypot(*(odom[-1][:2] - np.array(goal))) < TRUE_POSE_TOLERANCE, str(
+                (goal, odom[-1], killed, mission.get_result().values, mission._mission,
+                 [(s.step, s.pose, s.end_pose, s.values.get('mission'))
+                  for s in mission.steps[-6:]], nodes.logs()))
         assert len(killed) == KILLS, (killed, len(mission.steps))
         final = _observations(nodes.state_file)
         assert final[:len(seen)] == seen and len(final) >= len(seen)

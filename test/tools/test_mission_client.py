@@ -110,18 +110,23 @@ class _Handle:
 
 
 class _Server:
-    """An action client whose goals are all answered at once, accepted."""
+    """An action client whose goals are all accepted, each answered when ``answer`` is
+    called (at once if ``at_once``)."""
 
-    def __init__(self):
-        self.handles = []
+    def __init__(self, at_once=True):
+        self.handles, self.answers, self.at_once = [], [], at_once
 
     def send_goal_async(self, goal):
         from rclpy.task import Future
 
         self.handles.append(_Handle(len(self.handles) + 1))
-        future = Future()
-        future.set_result(self.handles[-1])
-        return future
+        self.answers.append(Future())
+        if self.at_once:
+            self.answer()
+        return self.answers[-1]
+
+    def answer(self):
+        self.answers[-1].set_result(self.handles[-1])
 
 
 def test_an_earlier_goals_late_result_is_not_the_next_goals():
@@ -151,3 +156,30 @@ def test_an_earlier_goals_late_result_is_not_the_next_goals():
     assert client.action_result is None
     server.handles[1].result.set_result(done)  # its own result is taken
     assert client.action_result is done
+
+
+def test_an_earlier_goals_late_result_while_the_next_goal_awaits_its_answer_is_ignored():
+    from types import SimpleNamespace
+
+    from action_msgs.msg import GoalStatus
+
+    events = []
+    client = MissionClient(_Node(), lambda t: events.pop(0)() if events else None)
+    client.wait_until_ready = lambda timeout: None
+    server = client._actions[ifc.NAVIGATE_TO_POSE.name] = _Server(at_once=False)
+    first, second = bytes([1] * 16).hex(), bytes([2] * 16).hex()
+    events += [server.answer,
+               lambda: client._diagnostics(_status(mission=1, steps=0, adaptations=0,
+                                                   goal_id=first))]
+    client.go_to_pose(0.2, 1.2, timeout=5)
+    client._diagnostics(_status(mission=1, success=True, steps=3, adaptations=0,
+                                goal_id=first))
+    done = SimpleNamespace(status=GoalStatus.STATUS_SUCCEEDED,
+                           result=SimpleNamespace(error_msg='', error_code=0))
+    # The first goal's action result comes before the second goal is answered.
+    events += [lambda: server.handles[0].result.set_result(done), server.answer,
+               lambda: client._diagnostics(_status(mission=2, steps=0, adaptations=0,
+                                                   goal_id=second))]
+    client.go_to_pose(1.2, 1.4, timeout=5)
+    assert client._mission == '2' and client.get_result() is None
+    assert client.action_result is None
