@@ -77,7 +77,6 @@ class Recorder:
                 if self._outcome(behavior_id):
                     break
             assert self._outcome(behavior_id), (behavior_id, self.errors[heard:], nodes.logs())
-        return [o for o in self.outcomes if first_id <= o.behavior_id < first_id + len(gaits)]
 
     def _outcome(self, behavior_id):
         return any(o.behavior_id == behavior_id for o in self.outcomes)

@@ -129,15 +129,28 @@ class _Server:
         self.answers[-1].set_result(self.handles[-1])
 
 
-def test_an_earlier_goals_late_result_is_not_the_next_goals():
+def _stand_in(server):
+    """A client whose goals go to ``server``; each wait runs the next of its ``events``."""
+    events = []
+    client = MissionClient(_Node(), lambda t: events.pop(0)() if events else None)
+    client.wait_until_ready = lambda timeout: None
+    client._actions[ifc.NAVIGATE_TO_POSE.name] = server
+    return client, events
+
+
+def _succeeded():
+    """An action result: the goal succeeded."""
     from types import SimpleNamespace
 
     from action_msgs.msg import GoalStatus
 
-    events = []
-    client = MissionClient(_Node(), lambda t: events.pop(0)() if events else None)
-    client.wait_until_ready = lambda timeout: None
-    server = client._actions[ifc.NAVIGATE_TO_POSE.name] = _Server()
+    return SimpleNamespace(status=GoalStatus.STATUS_SUCCEEDED,
+                           result=SimpleNamespace(error_msg='', error_code=0))
+
+
+def test_an_earlier_goals_late_result_is_not_the_next_goals():
+    server = _Server()
+    client, events = _stand_in(server)
     first, second = bytes([1] * 16).hex(), bytes([2] * 16).hex()
     events.append(lambda: client._diagnostics(_status(mission=1, steps=0, adaptations=0,
                                                       goal_id=first)))
@@ -146,8 +159,7 @@ def test_an_earlier_goals_late_result_is_not_the_next_goals():
                                 goal_id=first))
     assert client.get_result().success
     # The next goal: the first one's action result comes while it is being taken.
-    done = SimpleNamespace(status=GoalStatus.STATUS_SUCCEEDED,
-                           result=SimpleNamespace(error_msg='', error_code=0))
+    done = _succeeded()
     events += [lambda: server.handles[0].result.set_result(done),
                lambda: client._diagnostics(_status(mission=2, steps=0, adaptations=0,
                                                    goal_id=second))]
@@ -159,14 +171,8 @@ def test_an_earlier_goals_late_result_is_not_the_next_goals():
 
 
 def test_an_earlier_goals_late_result_while_the_next_goal_awaits_its_answer_is_ignored():
-    from types import SimpleNamespace
-
-    from action_msgs.msg import GoalStatus
-
-    events = []
-    client = MissionClient(_Node(), lambda t: events.pop(0)() if events else None)
-    client.wait_until_ready = lambda timeout: None
-    server = client._actions[ifc.NAVIGATE_TO_POSE.name] = _Server(at_once=False)
+    server = _Server(at_once=False)
+    client, events = _stand_in(server)
     first, second = bytes([1] * 16).hex(), bytes([2] * 16).hex()
     events += [server.answer,
                lambda: client._diagnostics(_status(mission=1, steps=0, adaptations=0,
@@ -174,8 +180,7 @@ def test_an_earlier_goals_late_result_while_the_next_goal_awaits_its_answer_is_i
     client.go_to_pose(0.2, 1.2, timeout=5)
     client._diagnostics(_status(mission=1, success=True, steps=3, adaptations=0,
                                 goal_id=first))
-    done = SimpleNamespace(status=GoalStatus.STATUS_SUCCEEDED,
-                           result=SimpleNamespace(error_msg='', error_code=0))
+    done = _succeeded()
     # The first goal's action result comes before the second goal is answered.
     events += [lambda: server.handles[0].result.set_result(done), server.answer,
                lambda: client._diagnostics(_status(mission=2, steps=0, adaptations=0,
