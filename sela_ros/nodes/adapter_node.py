@@ -57,7 +57,11 @@ class SelaAdapter(Node):
         # thread through this guard condition.
         self._saved = self.create_guard_condition(self._release_saved)
         self.store = persistence.StateStore(self.values['state_file'] or str(
-            persistence.default_state_file()), on_released=self._saved.trigger)
+            persistence.default_state_file(self.get_fully_qualified_name())),
+            on_released=self._saved.trigger)
+        # The state file is this adapter's alone: a second adapter on the same file would
+        # resume the other's learning and erase it at every save.
+        self._store_busy = self.store.claim()
         self._events, self._feeding, self._reply = deque(), False, None
         self._deferred_plan = None  # a plan request waiting for the planner to come up
         self._asked_plan = None  # the latest plan request sent to the planner
@@ -98,8 +102,10 @@ class SelaAdapter(Node):
         except ArchiveError as exc:
             self.report(io.Level.ERROR, f'no archive loaded: {exc}')
         else:
-            if self.values['resume']:
+            if self.values['resume'] and not self._store_busy:
                 self._resume()
+        if self._store_busy:
+            self.report(io.Level.ERROR, self._store_busy)
         self.create_timer(TICK_PERIOD, self.tick, clock=self.wall)
         self.create_timer(RESULT_PERIOD, self._say_liveness, clock=self.wall)
 

@@ -108,8 +108,9 @@ PARAMETERS = (
          'trust the map until the damage detector fires)', read_only=True),
     Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
     Spec('state_file', '', "where learning is saved after every step ('' = "
-         '~/.ros/sela_ros/sela_adapter_state.json); a regular file or none yet (a symbolic '
-         'link is written through)', read_only=True,
+         '~/.ros/sela_ros/[<namespace>/]sela_adapter_state.json); a regular file or none yet '
+         '(a symbolic link is written through), one adapter\'s alone (a second adapter given '
+         'it neither resumes from it nor saves to it)', read_only=True,
          rule=lambda value: persistence.path_problem(value) if value else None),
     Spec('max_observations', StepperConfig.max_observations, 'observations (generic '
          'rewards, falls) learning keeps over the robot\'s life, the latest: bounds the state '

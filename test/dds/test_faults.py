@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import GetParameters, SetParameters
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
@@ -420,3 +420,37 @@ def test_a_step_is_announced_only_once_saved_and_a_failed_save_is_an_error(tmp_p
     finally:
         client.close()
         nodes.stop()
+
+
+def test_a_second_adapter_on_the_same_state_file_neither_resumes_nor_erases_it(tmp_path):
+    """Two adapters given one state file (two robots' stacks sharing it by mistake): the
+    first keeps it, the second says why it will not use it, and the first's learning is
+    left as it is."""
+    state = tmp_path / 'state.json'
+    first = NodeProcesses({'sela_adapter': {'state_file': str(state)}},
+                          names=('sela_adapter',), namespace='/robot1')
+    client = Client()
+    second = None
+    try:
+        # Up (its parameters answer): it has claimed the file in its constructor.
+        get = client.node.create_client(GetParameters, '/robot1/sela_adapter/get_parameters')
+        client.call(get, GetParameters.Request(names=['state_file']), timeout=90)
+        kept = b'{"kept": "as it is"}'
+        state.write_bytes(kept)  # stands for what the first adapter learned
+        second = NodeProcesses({'sela_adapter': {'state_file': str(state)}},
+                               names=('sela_adapter',), namespace='/robot2')
+        client.spin_until(lambda: 'is in use by another process' in
+                          second.logs().get('sela_adapter.log', ''), 120,
+                          "the second adapter's reason")
+        log = second.logs()['sela_adapter.log']
+        assert 'own state_file' in log and 'resumed from' not in log, log
+        answer = client.call(client.node.create_client(Trigger, '/robot2/sela_adapter/adapt'),
+                             Trigger.Request(), timeout=60)
+        assert answer is not None  # still serving
+        assert state.read_bytes() == kept
+        assert all(first.alive().values()) and all(second.alive().values())
+    finally:
+        client.close()
+        first.stop()
+        if second is not None:
+            second.stop()

@@ -3,6 +3,7 @@
 A write goes to a temporary file beside the target, is fsync'ed, then renamed over it, so a
 crash (even SIGKILL) leaves the old file or the new one, never a partial one.
 """
+import fcntl
 import json
 import math
 import os
@@ -80,10 +81,13 @@ def atomic_write_json(path, obj, sync=True):
     atomic_write(path, lambda handle: handle.write(data), sync=sync)
 
 
-def default_state_file():
-    """Where the adapter keeps what it learned when ``state_file`` is not set."""
-    return Path(os.environ.get('ROS_HOME', os.path.expanduser('~/.ros'))) / 'sela_ros' / \
-        'sela_adapter_state.json'
+def default_state_file(node_name='/sela_adapter'):
+    """Where the adapter ``node_name`` (fully qualified) keeps what it learned when
+    ``state_file`` is not set: ``$ROS_HOME/sela_ros/<namespace>/<name>_state.json``, so that
+    stacks in their own namespaces (two robots in one domain) each keep their own."""
+    *namespace, name = [part for part in str(node_name).split('/') if part] or ['sela_adapter']
+    return Path(os.environ.get('ROS_HOME', os.path.expanduser('~/.ros'))).joinpath(
+        'sela_ros', *namespace, f'{name}_state.json')
 
 
 def path_problem(path):
@@ -287,6 +291,39 @@ class StateStore:
         self._landed = 0
         self._out = deque()  # (items, error) ready for the caller
         self.failures = 0
+        self._lock_file = None  # held while this store owns the file (claim)
+        self._refused = None  # why this store may not write the file (claim)
+
+    def claim(self):
+        """Make this store the file's only writer on this machine, for as long as this
+        process lives (an advisory lock on a file beside it, released by the kernel even on
+        SIGKILL). Returns None, or why not: another process holds it (e.g. a second adapter
+        given the same file), and then this store never reads nor writes it, so that
+        neither adapter erases what the other learned."""
+        real = Path(os.path.realpath(self.path))
+        lock_path = real.with_name(f'.{real.name}.lock')
+        try:
+            lock_path.parent.mkdir(parents=True, exist_ok=True)
+            handle = open(lock_path, 'a+')  # noqa: SIM115 - held for the store's life
+        except OSError:
+            return None  # nowhere to lock: every save says why it fails
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.seek(0)
+            holder = handle.read().strip()
+            handle.close()
+            self._refused = (f'state file {self.path} is in use by another process'
+                             f'{f" (pid {holder})" if holder.isdigit() else ""}: this adapter '
+                             'neither resumes from it nor saves to it; give each adapter its '
+                             'own state_file')
+            return self._refused
+        handle.seek(0)
+        handle.truncate()
+        handle.write(str(os.getpid()))
+        handle.flush()
+        self._lock_file = handle
+        return None
 
     def save(self, state, sync=True):
         """Queue a snapshot (taken by the caller, not touched afterwards) for writing
@@ -326,10 +363,15 @@ class StateStore:
 
     def close(self):
         self._writer.shutdown(wait=True)
+        if self._lock_file is not None:
+            self._lock_file.close()  # the lock goes with it
+            self._lock_file = None
 
     def _write(self, number, state, sync=True):
         error = None
         try:
+            if self._refused:
+                raise OSError(self._refused)
             atomic_write_json(self.path, state, sync=sync)
         except (OSError, ValueError, TypeError) as exc:
             error = f'could not save the learned state to {self.path}: {exc}'

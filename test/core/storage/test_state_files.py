@@ -197,3 +197,56 @@ def test_a_symlinked_state_file_stays_a_link_and_its_target_is_written(tmp_path)
     assert link.is_symlink() and os.readlink(link) == str(target)
     assert load_state(link, SIZE)['mission']['steps'] == 7
     assert json.loads(target.read_text())['mission']['steps'] == 7
+
+
+_HOLDER = '''
+import sys, time
+from sela_ros.core.storage.persistence import StateStore
+store = StateStore(sys.argv[1])
+print(store.claim(), flush=True)
+sys.stdin.read()  # held until the test closes our stdin
+'''
+
+
+def test_a_state_file_has_one_writer_and_a_second_store_neither_reads_nor_writes_it(tmp_path):
+    import subprocess
+    import sys
+
+    path = tmp_path / 'state.json'
+    atomic_write_json(path, _good())
+    holder = subprocess.Popen([sys.executable, '-c', _HOLDER, str(path)], text=True,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    try:
+        assert holder.stdout.readline().strip() == 'None'  # it holds the file
+        second = StateStore(path)
+        why = second.claim()
+        assert why is not None and f'pid {holder.pid}' in why and 'own state_file' in why
+        second.save({'erased': True})
+        second.flush(timeout=30)
+        [(items, error)] = second.released()
+        assert items == [] and 'in use by another process' in error
+        assert load_state(path, SIZE) == _good()  # the holder's file untouched
+        second.close()
+    finally:
+        holder.stdin.close()
+        holder.wait(timeout=30)
+    # Its holder gone, the file can be claimed again: a restarted adapter takes it back.
+    third = StateStore(path)
+    assert third.claim() is None
+    third.save({'step': 3})
+    third.flush(timeout=30)
+    third.close()
+    assert json.loads(path.read_text()) == {'step': 3}
+
+
+def test_each_namespace_has_its_own_default_state_file(monkeypatch, tmp_path):
+    from sela_ros.core.storage.persistence import default_state_file
+
+    monkeypatch.setenv('ROS_HOME', str(tmp_path))
+    root = tmp_path / 'sela_ros'
+    assert default_state_file() == root / 'sela_adapter_state.json'
+    assert default_state_file('/sela_adapter') == root / 'sela_adapter_state.json'
+    assert default_state_file('/robot1/sela_adapter') == \
+        root / 'robot1' / 'sela_adapter_state.json'
+    assert default_state_file('/fleet/robot2/adapter') == \
+        root / 'fleet' / 'robot2' / 'adapter_state.json'
