@@ -129,6 +129,11 @@ class PlannerNode(Node):
                 self.map_error = f'{_map_file_problem(path, exc)}; planning on the map.* ' \
                     'parameters instead'
                 self.get_logger().error(self.map_error)
+        return self._described_grid()
+
+    def _described_grid(self):
+        """The map of the map.* parameters, or, when they are wrong, an empty default field
+        (and ``map_error`` says why)."""
         try:
             return grid_from_description(
                 self.get_parameter('map.resolution').value,
@@ -187,11 +192,14 @@ class PlannerNode(Node):
         """Check what needs the node (a map file must load); params.declare checked types."""
         self._pending_grid = None
         for param in params:
-            if param.name == 'map.file' and param.value:
+            if param.name == 'map.file' and not param.value:
+                self._pending_grid = self._described_grid  # back to the map.* parameters
+            elif param.name == 'map.file':
                 # Reading the file is the check: a bad one is refused, the map stays.
                 try:
-                    self._pending_grid = (load_map_file(param.value, self.unknown_is_occupied),
-                                          f'file {param.value}')
+                    loaded = (load_map_file(param.value, self.unknown_is_occupied),
+                              f'file {param.value}')
+                    self._pending_grid = lambda loaded=loaded: loaded
                 except Exception as exc:  # noqa: BLE001 - whatever the file holds
                     problem = f'map.file: {_map_file_problem(param.value, exc)}'
                     self._report(DiagnosticStatus.ERROR, f'parameter refused: {problem}; '
@@ -207,10 +215,12 @@ class PlannerNode(Node):
                 self.inflation = float(param.value)
                 rebuild = True
         if self._pending_grid is not None:
-            grid, source = self._pending_grid
-            self._pending_grid = None
+            make, self._pending_grid = self._pending_grid, None
             self.map_error = None
+            grid, source = make()
             self._use_grid(grid, source)
+            if self.map_error:
+                self._report(DiagnosticStatus.ERROR, self.map_error)
         elif rebuild:
             self._use_grid(self.grid, 'the same map with the new inflation')
 

@@ -12,6 +12,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 
 from sela_ros.core.planning import load_map_file
+from sela_ros.core.planning.maps import DEFAULT_MAP, grid_from_description
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import grid_conversions as grids
 from sela_ros.nodes.interface import LATCHED_QOS, STATE_QOS
@@ -149,4 +150,12 @@ def test_maps_from_a_file_and_the_map_topic_and_bad_ones_refused(planner, tmp_pa
     corridor = load_map_file(MAPS / 'corridor.yaml')
     client.spin_until(lambda: watch.map_grid()[0].shape == corridor.occupied.shape, 30,
                       'the corridor map in use')
+    # '' is the map.* parameters' map again (config/sela.yaml's field).
+    assert watch.set_map_file('').successful
+    field = grid_from_description(DEFAULT_MAP['resolution'], DEFAULT_MAP['origin'],
+                                  DEFAULT_MAP['width'], DEFAULT_MAP['height'], [])
+    client.spin_until(lambda: watch.map_grid()[0].shape == field.occupied.shape, 30,
+                      "the map.* parameters' map in use")
+    assert not watch.map_grid()[0].any()
+    assert np.allclose(watch.path((0.0, 0.0), (-1.5, -1.5))[-1], (-1.5, -1.5))
     assert all(nodes.alive().values()), nodes.logs()
