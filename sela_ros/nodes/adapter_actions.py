@@ -42,7 +42,7 @@ class Binding:
     goals: list  # [(x, y), ...] in the odom frame, in order
     poses: list  # the goal's PoseStamped, for missed waypoints
     first_index: int  # FollowWaypoints: the rank in ``poses`` of goals[0]
-    started: float  # wall time (s)
+    started: float  # the node's clock (s): sim time under use_sim_time, as nav2's
     ended: Future = field(default_factory=Future)  # resolved with the MissionEnded
     start_distance: float = None
 
@@ -57,6 +57,11 @@ MAX_ACTIVE_GOALS = 200
 UNBOUND_KEPT = 16
 _SERVICE_QOS = QoSProfile(depth=SERVICE_DEPTH, history=HistoryPolicy.KEEP_LAST,
                           reliability=ReliabilityPolicy.RELIABLE)
+
+
+def _seconds(node):
+    """The node's clock now (s): the simulator's under use_sim_time."""
+    return node.get_clock().now().nanoseconds * 1e-9
 
 
 def _duration(seconds):
@@ -162,7 +167,9 @@ class MissionActions:
         try:
             goals, poses, first = self._goals_of(action, handle.request)
         except conv.MessageError as exc:
-            return self._finish(handle, action, False, ifc.UNKNOWN_ERROR, str(exc), [])
+            message = f'{action.name} goal refused: {exc}'
+            self.node.report(io.Level.ERROR, message)
+            return self._finish(handle, action, False, ifc.UNKNOWN_ERROR, message, [])
         problem = self._problem(goals)
         if problem is not None:
             index, code, why = problem
@@ -170,7 +177,7 @@ class MissionActions:
             self.node.report(io.Level.ERROR, message)
             return self._finish(handle, action, False, code, message,
                                 self._missed(poses, first, 0, goals, ended_at=(index, code)))
-        binding = Binding(handle, action, goals, poses, first, self.node.now())
+        binding = Binding(handle, action, goals, poses, first, _seconds(self.node))
         stepper = self.node.stepper
         before = stepper.mission_id
         self.node.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
@@ -213,10 +220,10 @@ class MissionActions:
             return [goal], [request.pose], 0
         poses = list(request.poses)
         if not poses:
-            raise conv.MessageError('follow_waypoints: the goal has no poses')
+            raise conv.MessageError('the goal has no poses')
         first = int(request.goal_index)
         if first >= len(poses):
-            raise conv.MessageError(f'follow_waypoints: goal_index {first} is past the '
+            raise conv.MessageError(f'goal_index {first} is past the '
                                     f'{len(poses)} poses')
         path = Path(poses=poses)
         path.header.frame_id = poses[0].header.frame_id
@@ -262,11 +269,11 @@ class MissionActions:
         if binding.start_distance is None:
             start = vector_from_text(values['pose']) if 'pose' in values else pose
             binding.start_distance = math.hypot(goal[0] - start[0], goal[1] - start[1])
-        elapsed = self.node.now() - binding.started
+        now = self.node.get_clock().now()
+        elapsed = now.nanoseconds * 1e-9 - binding.started
         progress = binding.start_distance - left
         feedback = ifc.NAVIGATE_TO_POSE.type.Feedback(
-            current_pose=conv.pose_stamped(pose[:2], pose[2],
-                                           stamp=self.node.get_clock().now().to_msg(),
+            current_pose=conv.pose_stamped(pose[:2], pose[2], stamp=now.to_msg(),
                                            frame_id=self.node.frame_id),
             navigation_time=_duration(elapsed),
             estimated_time_remaining=_duration(elapsed * left / progress

@@ -113,12 +113,16 @@ class SelaAdapter(Node):
 
     @guard(what='input')
     def _translate(self, msg, make_event, what):
-        if isinstance(msg, (ifc.GOAL.type, ifc.GOAL_PATH.type)):
+        goal = isinstance(msg, (ifc.GOAL.type, ifc.GOAL_PATH.type))
+        if goal:
             self.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
         try:
             event = make_event(msg)
         except conv.MessageError as exc:
-            self.get_logger().error(f'{what}: {exc}')
+            if goal:  # the user who sent it looks on /diagnostics
+                self.report(io.Level.ERROR, f'{what}: {exc}')
+            else:  # a stream (odometry, outcomes): the log, not a status per message
+                self.get_logger().error(f'{what}: {exc}')
             return
         if isinstance(event, io.GoalReceived):
             refusal = adapter_support.goal_refusal(self.map, event.goal, self.stepper)

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from nav2_msgs.action import FollowWaypoints, NavigateToPose
 
 from sela_ros.nodes import conversions as conv
@@ -31,7 +32,7 @@ class ActionUser:
         node = client.node
         self.navigate = ifc.action_client(node, ifc.NAVIGATE_TO_POSE, namespace)
         self.follow = ifc.action_client(node, ifc.FOLLOW_WAYPOINTS, namespace)
-        self.gaits, self.statuses, self.pose = [], [], None
+        self.gaits, self.statuses, self.errors, self.pose, self.stamp = [], [], [], None, None
         def name(relative):
             return f'{namespace}/{relative}' if namespace else relative
 
@@ -44,10 +45,13 @@ class ActionUser:
 
     def _odom(self, msg):
         self.pose = conv.pose_from_odometry(msg)
+        self.stamp = _seconds(msg.header.stamp)  # the simulator's clock
 
     def _diagnostics(self, msg):
         self.statuses += [conv.status_values(s) for s in msg.status
                           if s.name == ifc.MISSION_STATUS]
+        self.errors += [s.message for s in msg.status if s.name == ifc.MISSION_STATUS
+                        and s.level == DiagnosticStatus.ERROR]
 
     def ready(self):
         self.client.spin_until(lambda: self.navigate.server_is_ready()
@@ -99,6 +103,11 @@ def stack(request):
         nodes.stop()
 
 
+def _seconds(t):
+    """A builtin_interfaces Time or Duration in seconds."""
+    return t.sec + t.nanosec * 1e-9
+
+
 def _mission_of(user, goal_handle):
     goal_id = bytes(goal_handle.goal_id.uuid).hex()
     found = [s['mission'] for s in user.statuses if s.get('goal_id') == goal_id]
@@ -110,6 +119,7 @@ def test_navigate_to_pose_succeeds_with_feedback_every_gait(stack):
     goal = NavigateToPose.Goal(pose=user.goal_ahead(0.5, 0.0))
     feedback = []
     gaits_before = len(user.gaits)
+    sent = user.stamp
     handle = user.send(user.navigate, goal, feedback)
     assert handle.accepted
     answer = user.result(handle)
@@ -130,6 +140,17 @@ def test_navigate_to_pose_succeeds_with_feedback_every_gait(stack):
     assert last.distance_remaining <= EPS and math.isclose(
         last.distance_remaining, math.dist(end, target), abs_tol=1e-4)
     assert last.navigation_time.sec + last.navigation_time.nanosec > 0
+    # navigation_time runs on the node's clock, the simulator's (use_sim_time), as the
+    # feedback's stamps do: from the goal (the simulator idle since the odometry before it)
+    # to each feedback, and between two feedbacks, both advance alike.
+    for f in feedback:
+        assert math.isclose(_seconds(f.navigation_time),
+                            _seconds(f.current_pose.header.stamp) - sent, abs_tol=0.2), (
+            _seconds(f.navigation_time), _seconds(f.current_pose.header.stamp), sent)
+    for a, b in zip(feedback, feedback[1:]):
+        assert math.isclose(_seconds(b.navigation_time) - _seconds(a.navigation_time),
+                            _seconds(b.current_pose.header.stamp)
+                            - _seconds(a.current_pose.header.stamp), abs_tol=1e-6)
     assert all(f.current_pose.header.frame_id == 'odom' for f in feedback)
     print(f'navigate_to_pose: {gaits} gait(s), {len(feedback)} feedback(s), ended '
           f'{math.dist(end, target):.3f} m from the goal')
@@ -171,6 +192,30 @@ def test_a_goal_off_the_map_is_aborted_with_the_reason(stack):
     assert answer.result.error_msg, answer.result
     if answer.result.error_code == ifc.GOAL_OUTSIDE_MAP:
         assert 'off the map' in answer.result.error_msg
+
+
+@pytest.mark.parametrize('field, value, reason', [
+    ('frame_id', 'map', "frame 'map' is not supported"),
+    ('x', math.nan, 'value 0 is nan; expected finite numbers')])
+def test_a_malformed_goal_is_aborted_and_said_on_diagnostics(stack, field, value, reason):
+    nodes, user = stack
+    pose = user.goal_ahead(0.5, 0.0)
+    if field == 'frame_id':
+        pose.header.frame_id = value
+    else:
+        pose.pose.position.x = value
+    errors_before = len(user.errors)
+    handle = user.send(user.navigate, NavigateToPose.Goal(pose=pose), [])
+    assert handle.accepted
+    answer = user.result(handle, 60)
+    assert answer.status == GoalStatus.STATUS_ABORTED
+    assert answer.result.error_code == ifc.UNKNOWN_ERROR
+    assert 'navigate_to_pose goal refused' in answer.result.error_msg
+    assert reason in answer.result.error_msg, answer.result.error_msg
+    user.client.spin_until(lambda: any(answer.result.error_msg in e
+                                       for e in user.errors[errors_before:]), 30,
+                           'the refusal said on /diagnostics')
+    assert all(nodes.alive().values()), nodes.logs()
 
 
 def test_a_new_goal_preempts_the_running_one(stack):
