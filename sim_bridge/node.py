@@ -71,7 +71,7 @@ def robot_rule(value):
 
 def _damage_spec(description):
     return Spec('damage', description.default_damage,
-                'what is broken; can change at run time: intact, '
+                "what is broken; can change at run time: intact (or ''), "
                 'remove:<leg>, shorten:<leg>[:f], block:<leg>.<joint>[=rad], '
                 'weaken:<leg>.<joint>[=torque share], friction:<ground coefficient>, '
                 'payload:<kg>[@<x>,<y> m from the body centre], comma-joined (the kinds and the '
