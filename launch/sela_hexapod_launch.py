@@ -26,13 +26,18 @@ simulator publishes ``robot_description`` with the current damage (a removed leg
 absent); robot_state_publisher gets the robot's intact model (the hexapod's is
 share/sela_ros/urdf/hexapod.urdf) for the legs'
 transforms, and its own copy of the description is moved aside so that it does not replace
-the simulator's.
+the simulator's. Where robot_state_publisher or rviz2 is not installed, a line says so and
+the rest of the stack starts.
 """
 import os
 
-from ament_index_python.packages import get_package_share_directory
+from ament_index_python.packages import (
+    PackageNotFoundError,
+    get_package_prefix,
+    get_package_share_directory,
+)
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, GroupAction, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, GroupAction, LogInfo, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import EqualsSubstitution, LaunchConfiguration
 from launch_ros.actions import Node, PushRosNamespace
@@ -96,6 +101,7 @@ def robot_nodes(context, share):
     damage = LaunchConfiguration('damage').perform(context) or robot.default_damage
     params = LaunchConfiguration('params_file')
     hardware = IfCondition(EqualsSubstitution(LaunchConfiguration('interface'), 'trajectory'))
+    rviz = IfCondition(LaunchConfiguration('rviz'))
     return [
         Node(package='sela_ros', executable='sim_bridge', name='sim_bridge', output='screen',
              parameters=[params, {'robot': robot.name,
@@ -124,9 +130,27 @@ def robot_nodes(context, share):
              parameters=[{'robot_description': robot.urdf(), 'use_sim_time': True}],
              remappings=TF_REMAPS + [
                  ('joint_states', 'hexapod/joint_states'),
-                 ('robot_description', 'robot_state_publisher/robot_description')]),
+                 ('robot_description', 'robot_state_publisher/robot_description')])
+        if _installed('robot_state_publisher') else LogInfo(msg=_missing(
+            'robot_state_publisher', "the legs' transforms are not published (the simulator's "
+            'odom -> base_link is)')),
         Node(package='rviz2', executable='rviz2', name='rviz2', output='screen',
              arguments=['-d', os.path.join(share, 'rviz', 'sela.rviz')],
-             parameters=[{'use_sim_time': True}], remappings=TF_REMAPS,
-             condition=IfCondition(LaunchConfiguration('rviz'))),
+             parameters=[{'use_sim_time': True}], remappings=TF_REMAPS, condition=rviz)
+        if _installed('rviz2') else LogInfo(msg=_missing('rviz2', 'no RViz'), condition=rviz),
     ]
+
+
+def _installed(package):
+    """Whether ``package`` is in the ament index (a missing one would end the launch after
+    the nodes before it had started)."""
+    try:
+        get_package_prefix(package)
+    except PackageNotFoundError:
+        return False
+    return True
+
+
+def _missing(package, what):
+    return (f"{package} is not installed (apt install ros-$ROS_DISTRO-"
+            f"{package.replace('_', '-')}): {what}; the rest of the stack runs")

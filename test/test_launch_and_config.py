@@ -29,11 +29,25 @@ class _Context:
         self.launch_configurations = values
 
 
-def _load_launch(monkeypatch, filename, **values):
+def _load_launch(monkeypatch, filename, installed=('robot_state_publisher', 'rviz2'),
+                 **values):
     """The launch file's description, its OpaqueFunctions expanded as ``ros2 launch`` would
-    with the declared defaults and ``values`` (launch arguments)."""
+    with the declared defaults and ``values`` (launch arguments), on a ROS install where of
+    the packages beside sela_ros only those ``installed`` are."""
+    import ament_index_python.packages as index
+    real = index.get_package_prefix
+
+    def prefix(package):
+        if package not in ('robot_state_publisher', 'rviz2'):
+            return real(package)  # sela_ros: this venv, the ament prefix
+        if package not in installed:
+            raise index.PackageNotFoundError(package)
+        return '/opt/ros/jazzy'
+
+    monkeypatch.setattr(index, 'get_package_prefix', prefix)
     fakes = {'launch': ['LaunchDescription'],
-             'launch.actions': ['DeclareLaunchArgument', 'GroupAction', 'OpaqueFunction'],
+             'launch.actions': ['DeclareLaunchArgument', 'GroupAction', 'LogInfo',
+                                'OpaqueFunction'],
              'launch.conditions': ['IfCondition'],
              'launch.substitutions': ['EqualsSubstitution', 'LaunchConfiguration'],
              'launch_ros': [], 'launch_ros.actions': ['Node', 'PushRosNamespace']}
@@ -121,6 +135,24 @@ def test_robot_state_publisher_and_optional_rviz_use_installed_files(launch_desc
     config = Path(rviz.kwargs['arguments'][1])
     assert config.parent.name == 'rviz' and config.is_file(), config
     assert dict(rviz.kwargs['remappings'])['/tf'] == 'tf'
+
+
+def test_without_robot_state_publisher_or_rviz_the_stack_starts_and_says_what_is_missing(
+        monkeypatch):
+    description = _load_launch(monkeypatch, 'sela_hexapod_launch.py', installed=())
+    nodes = _nodes(description)
+    assert {n.kwargs['package'] for n in nodes} == {'sela_ros'}
+    assert sorted(n.kwargs['executable'] for n in nodes
+                  if 'condition' not in n.kwargs) == sorted(NODES)
+    (group,) = [a for a in description.args[0] if type(a).__name__ == 'GroupAction']
+    said = {a.kwargs['msg']: a.kwargs.get('condition') for a in group.args[0]
+            if type(a).__name__ == 'LogInfo'}
+    assert len(said) == 2, said
+    rsp, rviz = sorted(said)
+    assert rsp.startswith('robot_state_publisher is not installed') and said[rsp] is None
+    assert 'ros-$ROS_DISTRO-robot-state-publisher' in rsp
+    assert rviz.startswith('rviz2 is not installed')
+    assert said[rviz].args[0].args[0] == 'rviz'  # said only when RViz is asked for
 
 
 def _arguments(launch_description):
