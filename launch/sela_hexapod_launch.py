@@ -96,7 +96,8 @@ def robot_nodes(context, share):
     ``interface:=trajectory``, the simulator's fall test for the gait executor."""
     from sim_bridge.robots import get_robot
 
-    robot = get_robot(LaunchConfiguration('robot').perform(context))
+    spec = LaunchConfiguration('robot').perform(context)  # the nodes find it by this
+    robot = get_robot(spec)
     archive = LaunchConfiguration('archive').perform(context) or robot.archive
     damage = LaunchConfiguration('damage').perform(context) or robot.default_damage
     params = LaunchConfiguration('params_file')
@@ -104,7 +105,7 @@ def robot_nodes(context, share):
     rviz = IfCondition(LaunchConfiguration('rviz'))
     return [
         Node(package='sela_ros', executable='sim_bridge', name='sim_bridge', output='screen',
-             parameters=[params, {'robot': robot.name,
+             parameters=[params, {'robot': spec,
                                   'damage': damage,
                                   'seed': LaunchConfiguration('seed'),
                                   'sim.gui': LaunchConfiguration('gui'),
@@ -113,7 +114,7 @@ def robot_nodes(context, share):
              remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='gait_executor', name='gait_executor',
              output='screen', parameters=[params, {
-                 **SIMULATED_HARDWARE, 'robot': robot.name,
+                 **SIMULATED_HARDWARE, 'robot': spec,
                  'fall.tilt': float(robot.fall_tilt),
                  'fall.min_height': float(robot.fall_height)}],
              remappings=CLOCK_REMAP, condition=hardware),

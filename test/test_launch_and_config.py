@@ -205,6 +205,15 @@ def test_robot_a1_runs_the_stack_on_the_a1_its_map_model_and_fall_test(monkeypat
         _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='walrus')
 
 
+def test_a_robot_named_by_its_import_path_reaches_the_nodes_as_named(monkeypatch):
+    launch = _load_launch(monkeypatch, 'sela_hexapod_launch.py',
+                          robot='sim_bridge.robots.a1:A1')
+    nodes = {n.kwargs['executable']: n for n in _nodes(launch)}
+    for name in ('sim_bridge', 'gait_executor'):  # each finds the description by it
+        assert nodes[name].kwargs['parameters'][1]['robot'] == 'sim_bridge.robots.a1:A1'
+    assert nodes['sela_adapter'].kwargs['parameters'][1]['archive'] == 'a1'
+
+
 def test_the_hardware_launch_runs_the_stack_on_a_robots_own_topics(monkeypatch):
     launch = _load_launch(monkeypatch, 'sela_hardware_launch.py')
     arguments = _arguments(launch)

@@ -26,10 +26,12 @@ SIMULATED_HARDWARE = {'odometry_topic': 'hexapod/odom_observed', 'imu_topic': 'h
                       'odometry.timeout': 5.0}
 
 
-def simulated_hardware(description):
+def simulated_hardware(description, robot=None):
     """The gait executor's parameters on the simulator's hardware face for ``description``:
-    :data:`SIMULATED_HARDWARE`, the robot and the simulator's fall test for it."""
-    return {**SIMULATED_HARDWARE, 'robot': description.name,
+    :data:`SIMULATED_HARDWARE`, the robot (``robot``, as the user named it: a name or
+    ``package.module:DESCRIPTION``; None: the description's name) and the simulator's fall
+    test for it."""
+    return {**SIMULATED_HARDWARE, 'robot': robot or description.name,
             'fall.tilt': float(description.fall_tilt),
             'fall.min_height': float(description.fall_height)}
 
@@ -146,10 +148,13 @@ def main(argv=None):
 
                 duration = read_archive_settings(resolve_archive_path(archive))['gait_duration']
                 cmd += ['-p', f'gait_duration:={duration}']
-                cmd += [a for key, value in simulated_hardware(description).items()
+                cmd += [a for key, value in simulated_hardware(description,
+                                                               args.robot).items()
                         for a in ('-p', f'{key}:={value}')]
             if name == 'sim_bridge':
-                cmd += ['-p', f'robot:={description.name}', '-p', f'damage:={damage}',
+                # The robot as the user named it: a description of their own is found by
+                # its import path, not its name.
+                cmd += ['-p', f'robot:={args.robot}', '-p', f'damage:={damage}',
                         '-p', f'seed:={args.seed}', '-p', f'sim.gui:={str(args.gui).lower()}',
                         '-p', f'archive:={archive}',  # the simulator runs the map's physics
                         '-p', f'interface:={args.interface}']

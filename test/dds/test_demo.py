@@ -1,5 +1,6 @@
 """`sela-demo` (what `make demo` runs): the mission over DDS, its summary, plot and MCAP."""
 import json
+import os
 import subprocess
 
 import pytest
@@ -113,3 +114,39 @@ def test_the_a1_demo_reaches_its_goal_over_dds(tmp_path, ros_env):
     from sela_ros.core.storage import load_archive, resolve_archive_path
 
     assert max(summary['behaviors']) < len(load_archive(resolve_archive_path('a1')))
+
+
+_VARIANT = '''
+from sim_bridge.robots.a1 import A1Description
+
+
+class Marked(A1Description):
+    """The A1 (its map, its name), its model marked: found only by its import path."""
+
+    def urdf(self, damage='intact'):
+        return super().urdf(damage).replace('<robot ', '<!-- the marked a1 -->\\n<robot ', 1)
+
+
+VARIANT = Marked()
+'''
+
+
+def test_a_robot_of_ones_own_named_by_its_import_path_is_the_one_simulated(tmp_path,
+                                                                           ros_env):
+    (tmp_path / 'my_robots.py').write_text(_VARIANT)
+    env = dict(ros_env, PYTHONPATH=os.pathsep.join(
+        p for p in (str(tmp_path), ros_env.get('PYTHONPATH')) if p))
+    out = tmp_path / 'demo_variant'
+    proc = subprocess.run(
+        [str(executable('sela-demo')), '--robot', 'my_robots:VARIANT', '--goal', '0.5,0.3',
+         '--out', str(out), '--timeout', '400'],
+        env=env, capture_output=True, text=True, timeout=480)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    with open(out / 'mission.mcap', 'rb') as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        models = [decoded.data for _, channel, _, decoded in reader.iter_decoded_messages()
+                  if channel.topic == '/robot_description']
+    assert models and all('<!-- the marked a1 -->' in m for m in models), models[:1]
