@@ -295,6 +295,25 @@ def take_renamed(overrides, specs, warn):
              'rename it in the parameter file (the old name will stop working)')
 
 
+def _tag_blind_loader():
+    """A safe YAML loader that reads a node with an unknown tag as if it had none, as rcl's
+    parser does: launch_ros writes a list given in a launch file as ``!!python/tuple``."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    def untagged(loader, suffix, node):
+        if isinstance(node, yaml.SequenceNode):
+            return loader.construct_sequence(node, deep=True)
+        if isinstance(node, yaml.MappingNode):
+            return loader.construct_mapping(node, deep=True)
+        return loader.construct_scalar(node)
+
+    Loader.add_multi_constructor('', untagged)
+    return Loader
+
+
 def params_file_problems(args):
     """Problems with the ``--params-file`` files named in ``args`` (a node's command line).
 
@@ -314,7 +333,7 @@ def params_file_problems(args):
         path = args[i + 1]
         try:
             with open(path) as handle:
-                data = yaml.safe_load(handle)
+                data = yaml.load(handle, Loader=_tag_blind_loader())  # noqa: S506 - safe
         except OSError as exc:
             problems.append(f'params file {path}: {exc.strerror}')
             continue

@@ -14,7 +14,7 @@ from std_msgs.msg import String
 from sela_ros.nodes.interface import LATCHED_QOS
 from sela_ros.tools.ros_env import executable
 
-from ros_graph import Client, NodeProcesses
+from ros_graph import CONFIG, Client, NodeProcesses
 
 pytestmark = [pytest.mark.dds]
 
@@ -155,6 +155,22 @@ def test_an_integer_for_a_double_at_start_up_is_taken(ros_env, client):
         (value,) = client.call(get, GetParameters.Request(names=['planner.inflation']),
                                timeout=60).values
         assert value.type == ParameterType.PARAMETER_DOUBLE and value.double_value == 1.0
+    finally:
+        nodes.stop()
+
+
+def test_a_list_written_by_launch_ros_as_a_python_tuple_is_taken(ros_env, client, tmp_path):
+    """launch_ros writes a list given in a launch file as ``!!python/tuple``; rcl reads it as a
+    list, and so must the node's own check of its parameter files."""
+    tagged = tmp_path / 'launch_params.yaml'
+    tagged.write_text('/**/damage_detector:\n  ros__parameters:\n    heartbeat.nodes: '
+                      '!!python/tuple\n    - planner\n    - sela_adapter\n')
+    nodes = NodeProcesses(names=('damage_detector',), params_files=(CONFIG, tagged))
+    try:
+        get = client.node.create_client(GetParameters, '/damage_detector/get_parameters')
+        (value,) = client.call(get, GetParameters.Request(names=['heartbeat.nodes']),
+                               timeout=60).values
+        assert list(value.string_array_value) == ['planner', 'sela_adapter'], nodes.logs()
     finally:
         nodes.stop()
 

@@ -131,6 +131,11 @@ def test_params_file_problems_say_which_file_where_and_what(tmp_path):
     assert "node 'planner' needs a ros__parameters mapping" in problem
     (problem,) = params_file_problems(['--params-file', str(tmp_path / 'missing.yaml')])
     assert 'missing.yaml' in problem and 'No such file' in problem
+    # A list from a launch file, as launch_ros writes it: rcl reads it as a list.
+    tagged = tmp_path / 'from_launch.yaml'
+    tagged.write_text('/**/damage_detector:\n  ros__parameters:\n    heartbeat.nodes: '
+                      '!!python/tuple\n    - planner\n    - sela_adapter\n')
+    assert params_file_problems(['--params-file', str(tagged)]) == []
 
 
 def test_a_node_given_a_malformed_params_file_says_where_and_does_not_start(tmp_path):
