@@ -299,6 +299,9 @@ def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD) -> DamageSpec:
             raise DamageSpecError(
                 f'unknown damage kind {kind.strip()!r} in {item!r}; valid kinds: '
                 f'{", ".join(vocabulary.kinds)} ({_examples(vocabulary)})')
+    if removed and len(removed) == len(vocabulary.legs):
+        raise DamageSpecError(f'every leg is removed ({", ".join(vocabulary.legs)}): at least '
+                              'one must remain for the robot to stand on')
     for leg in removed:
         if leg in shortened or any(b[0] == leg for b in blocked) or \
                 any(w[0] == leg for w in weakened):

@@ -130,3 +130,10 @@ def test_canonical_round_trip(items):
     assert again == spec and again.canonical() == spec.canonical()
     for _leg, joint, angle in spec.blocked:
         assert abs(angle) <= JOINT_LIMITS[joint]
+
+
+def test_every_leg_removed_is_refused_with_the_reason():
+    with pytest.raises(DamageSpecError, match='every leg is removed.*at least one must remain'):
+        parse_damage(','.join(f'remove:{leg}' for leg in LEG_NAMES))
+    five = parse_damage(','.join(f'remove:{leg}' for leg in LEG_NAMES[1:]))
+    assert len(five.removed) == 5  # one left: a damage, however bad
