@@ -304,10 +304,21 @@ def odometry_msg(pose, twist=(0.0, 0.0, 0.0), stamp=0.0, frame_id='odom',
     return msg
 
 
+#: m from the odom origin beyond which an odometry pose is refused: ten times as far as any
+#: map may reach (its corner within 100 km, a side of 1 km at most: core.planning.maps).
+ODOMETRY_LIMIT = 1e6
+
+
 def pose_from_odometry(msg):
     p = msg.pose.pose
     pose = np.array([p.position.x, p.position.y, quaternion_to_yaw(p.orientation)])
-    return _finite_array(pose, 'odometry pose', 3)
+    pose = _finite_array(pose, 'odometry pose', 3)
+    far = np.abs(pose[:2]) > ODOMETRY_LIMIT
+    if far.any():
+        axis = 'xy'[int(np.flatnonzero(far)[0])]
+        raise MessageError(f'odometry pose: {axis} {pose[int(np.flatnonzero(far)[0])]:g} m is '
+                           f'beyond {ODOMETRY_LIMIT:g} m of the odom origin')
+    return pose
 
 
 def goal_from_pose_stamped(msg, expected_frame='odom'):

@@ -132,9 +132,20 @@ def test_prediction_round_trip(behavior_id, gr, sigma):
 
 @given(finite, finite, angle)
 def test_odometry_round_trip(x, y, yaw):
-    pose = conv.pose_from_odometry(conv.odometry_msg([x, y, yaw], stamp=12.5))
+    msg = conv.odometry_msg([x, y, yaw], stamp=12.5)
+    if max(abs(x), abs(y)) > conv.ODOMETRY_LIMIT:
+        with pytest.raises(conv.MessageError, match='beyond'):
+            conv.pose_from_odometry(msg)
+        return
+    pose = conv.pose_from_odometry(msg)
     assert pose[0] == x and pose[1] == y
     assert abs(math.remainder(pose[2] - yaw, 2 * math.pi)) < 1e-9
+
+
+def test_odometry_beyond_any_map_is_refused_with_the_reason():
+    with pytest.raises(conv.MessageError, match=r'odometry pose: y 1e\+300 m is beyond'):
+        conv.pose_from_odometry(conv.odometry_msg([0.0, 1e300, 0.0]))
+    assert conv.pose_from_odometry(conv.odometry_msg([-9.9e5, 9.9e5, 0.0]))[0] == -9.9e5
 
 
 @given(finite, finite)
