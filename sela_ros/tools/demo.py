@@ -36,6 +36,10 @@ def simulated_hardware(description, robot=None):
             'fall.min_height': float(description.fall_height)}
 
 
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def _course(text):
     from sela_ros.experiments.courses import find_course
 
@@ -131,6 +135,8 @@ def main(argv=None):
     if args.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
     ensure_ros_environment()
+    # SIGTERM (`timeout`, a supervisor) ends the demo as Ctrl-C does: the nodes stopped.
+    signal.signal(signal.SIGTERM, _interrupt)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     params_file = args.params_file or str(package_prefix() / 'share' / 'sela_ros' / 'config'
@@ -176,6 +182,9 @@ def main(argv=None):
               f"{args.seed}, ROS_DOMAIN_ID={env.get('ROS_DOMAIN_ID', '0')}, nodes: "
               + ', '.join(f'{n}[{p.pid}]' for n, p in procs.items()), flush=True)
         summary = run_client(args, damage, out, procs)
+    except KeyboardInterrupt:  # Ctrl-C (or SIGTERM) while the nodes were starting
+        print('sela-demo: interrupted', file=sys.stderr, flush=True)
+        summary = {'problem': 'interrupted'}
     finally:
         for proc in procs.values():
             if proc.poll() is None:
@@ -189,12 +198,23 @@ def main(argv=None):
                 proc.wait()
         for handle in logs.values():
             handle.close()
+    if summary.get('problem') == 'interrupted':
+        return 128 + signal.SIGINT
     return 0 if summary.get('success') else 1
+
+
+class NodeExited(RuntimeError):
+    """A node of the stack exited while the client waited on it."""
+
+    def __init__(self, names):
+        super().__init__(f"node(s) {', '.join(names)} exited")
+        self.names = names
 
 
 def run_client(args, damage, out, procs):
     """The user's side of the mission: send the goal, follow the steps, record, summarise."""
     import rclpy
+    from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
 
     from sela_ros.nodes import conversions as conv
@@ -210,7 +230,13 @@ def run_client(args, damage, out, procs):
     rclpy.init()
     node = Node('sela_demo')
     trajectory = []
-    spin_once = lambda timeout: rclpy.spin_once(node, timeout_sec=timeout)  # noqa: E731
+
+    def spin_once(timeout):
+        rclpy.spin_once(node, timeout_sec=timeout)
+        dead = [n for n, p in procs.items() if p.poll() is not None]
+        if dead:  # whatever the client waits for, it will not come
+            raise NodeExited(dead)
+
     mission = MissionClient(node, spin_once)
     printed = {'steps': 0, 'detections': 0, 'goals': 0}
 
@@ -224,8 +250,8 @@ def run_client(args, damage, out, procs):
                   f"  reward {s.reward:+.3f}  "
                   f"{'ADAPTING' if s.adapting else 'trusting map'}", flush=True)
         for d in mission.detections[printed['detections']:]:
-            print(f"        damage detector: error {d.error:.3f} m > "
-                  f"{d.threshold} m -> {d.adapt}", flush=True)
+            print(f"        damage detector fired: error {d.error:.3f} m (threshold "
+                  f"{d.threshold} m) -> {d.adapt}", flush=True)
         for g in mission.goals_reached[printed['goals']:]:
             print(f'        goal {g.index}/{len(args.goals)} ({g.goal[0]:.2f}, {g.goal[1]:.2f}) '
                   f'reached in {g.steps} steps', flush=True)
@@ -241,6 +267,7 @@ def run_client(args, damage, out, procs):
                             {t.root_name: t.type for t in recorded},
                             qos_for={t.root_name: t.qos for t in recorded}.get)
     start = time.monotonic()
+    problem = None  # why there is no result, if there is none
     try:
         if len(args.goals) > 1:
             mission.follow_goals(args.goals, timeout=args.timeout)
@@ -248,14 +275,22 @@ def run_client(args, damage, out, procs):
             mission.go_to_pose(*args.goal, timeout=args.timeout)
         while not mission.is_task_complete() and time.monotonic() - start < args.timeout:
             print_progress()
-            dead = [n for n, p in procs.items() if p.poll() is not None]
-            if dead:
-                print(f'sela-demo: node(s) {dead} exited; see their logs', file=sys.stderr)
-                break
+        if mission.get_result() is None:
+            problem = f'no result within --timeout {args.timeout:g} s'
         settle = time.monotonic() + 0.5  # the state after the last gait
         while time.monotonic() < settle:
             rclpy.spin_once(node, timeout_sec=0.05)
         print_progress()
+    except NodeExited as exc:
+        problem = (f"node(s) {', '.join(exc.names)} exited; see "
+                   + ', '.join(str(out / f'{n}.log') for n in exc.names))
+        for name in exc.names:
+            tail = (out / f'{name}.log').read_text(errors='replace').strip().splitlines()[-3:]
+            problem += ''.join(f'\n  {name}: {line}' for line in tail)
+    except TimeoutError as exc:  # the stack never became ready, or never took the goal
+        problem = str(exc)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        problem = 'interrupted'
     finally:
         recorder.close()
         node.destroy_node()
@@ -281,6 +316,7 @@ def run_client(args, damage, out, procs):
         'behaviors': [int(s['behavior_index']) for s in steps],
         'steps_detail': steps, 'recording': str(out / 'mission.mcap'),
         'recorded_messages': recorder.counts,
+        'problem': problem,
     }
     with open(out / 'summary.json', 'w') as handle:
         json.dump(summary, handle, indent=1)
@@ -297,7 +333,8 @@ def run_client(args, damage, out, procs):
         print(f'sela-demo: mission failed: {result.message}'
               + ''.join(f' (planner: {m})' for m in why), file=sys.stderr, flush=True)
     elif result is None:
-        print('sela-demo: no result from the adapter', file=sys.stderr, flush=True)
+        print(f"sela-demo: {problem or 'no result from the adapter'}", file=sys.stderr,
+              flush=True)
     print(f"sela-demo: {verdict} in {summary['steps']} steps "
           f"(adaptation from step {summary['learning_started_at_step']}, "
           f"{summary['detections']} detection(s)), final distance "

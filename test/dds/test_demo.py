@@ -83,6 +83,21 @@ def test_demo_rejects_bad_arguments_with_usage(ros_env):
         assert 'usage:' in proc.stderr and 'Traceback' not in proc.stderr
 
 
+def test_a_node_that_dies_at_start_up_ends_the_demo_with_its_name_and_log(tmp_path, ros_env):
+    """The nodes refuse a broken parameter file and exit: the demo says so at once, with
+    their logs' last lines, not after --timeout (the subprocess's own limit is shorter)."""
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('/**/planner:\n  ros__parameters:\n    map.file: [oops\n')
+    proc = subprocess.run([str(executable('sela-demo')), '--params-file', str(broken),
+                           '--out', str(tmp_path / 'out'), '--timeout', '900'], env=ros_env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    assert 'exited; see' in proc.stderr and 'not valid YAML' in proc.stderr, proc.stderr
+    assert 'Traceback' not in proc.stderr, proc.stderr
+    summary = json.loads((tmp_path / 'out' / 'summary.json').read_text())
+    assert summary['success'] is False and 'exited' in summary['problem']
+
+
 def test_demo_takes_goals_with_negative_coordinates_as_written():
     from sela_ros.tools.demo import build_parser
 
