@@ -37,10 +37,15 @@ MAP_SERVER_MODES = ('trinary', 'scale', 'raw')
 DEFAULT_MAP = {'resolution': 0.05, 'origin': (-4.0, -4.0), 'width': 8.0, 'height': 8.0}
 #: What a map may be, wherever it comes from (the ``map.*`` parameters, a map file, a map on
 #: a topic): a cell of 1 mm to 1 m (m), a side of 1 cm to 1 km (m), a corner within 100 km
-#: of the odom origin (m). Beyond them a map is refused with the reason, not planned on.
+#: of the odom origin (m), at most :data:`MAX_CELLS` cells. Beyond them a map is refused with
+#: the reason, not planned on.
 RESOLUTION_RANGE = (0.001, 1.0)
 SIDE_RANGE = (0.01, 1000.0)
 ORIGIN_LIMIT = 1e5
+#: Cells a map may have at most: the planner holds about 150 bytes per cell (its graph and
+#: one cost-to-go field; 4 M cells take 0.6 GB here), so a 350 m square at 5 cm (50 M cells)
+#: takes some 7.5 GB. A finer or larger map is refused with the reason, not run out of memory.
+MAX_CELLS = 50_000_000
 #: Clearance kept from obstacles (m): about half the hexapod's width, legs out.
 DEFAULT_INFLATION = 0.25
 
@@ -74,6 +79,12 @@ def check_geometry(resolution, origin, width, height, name='map'):
         within(value, -ORIGIN_LIMIT, ORIGIN_LIMIT, what)
     within(width, *SIDE_RANGE, 'width')
     within(height, *SIDE_RANGE, 'height')
+    cells = math.ceil(width / resolution - 1e-9) * math.ceil(height / resolution - 1e-9)
+    if cells > MAX_CELLS:
+        raise MapError(f'{name} of {width:g} m x {height:g} m at {resolution:g} m has '
+                       f'{cells / 1e6:.0f} M cells, more than the planner holds '
+                       f'({MAX_CELLS / 1e6:.0f} M, about 150 bytes each): a coarser '
+                       'resolution or a smaller map')
 
 
 def _numbers(value, name, lengths, what):

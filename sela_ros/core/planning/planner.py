@@ -33,6 +33,9 @@ from sela_ros.core.planning.grid import (
 )
 
 DEFAULT_SMOOTH_HORIZON = 5.0  # m of path smoothed by GridPlanner (see there)
+#: Cells of cost-to-go fields a GridPlanner keeps (about 45 bytes each): its cache_size fields
+#: on a small map, only the current goal's on a large one (memory bounded, not grown per goal).
+FIELD_CELLS_KEPT = 8_000_000
 
 
 def _octile(a, b):
@@ -321,7 +324,9 @@ class GridPlanner(AStarPlanner):
                 self._graph = grid_graph(free)
             field = CostField(free, free_goal, self._graph)
             self._fields[free_goal] = field
-            if len(self._fields) > self.cache_size:
+            # At most FIELD_CELLS_KEPT cells of fields: on a large map only the current one.
+            kept = max(1, min(self.cache_size, FIELD_CELLS_KEPT // free.size))
+            while len(self._fields) > kept:
                 self._fields.popitem(last=False)
         self._fields.move_to_end(free_goal)
         return free_goal, field

@@ -168,3 +168,15 @@ def test_unreachable_goal_is_an_error_from_a_free_start():
     planner = GridPlanner(OccupancyGrid(occ, 0.1))
     with pytest.raises(UnreachableError, match='unreachable'):
         planner((0.2, 0.2), (1.8, 0.2))
+
+
+def test_on_a_large_map_only_the_current_goals_field_is_kept(monkeypatch):
+    from sela_ros.core.planning import planner as planner_module
+
+    grid = _walled_grid()
+    # As if the map were larger than FIELD_CELLS_KEPT allows two fields of.
+    monkeypatch.setattr(planner_module, 'FIELD_CELLS_KEPT', grid.occupied.size * 3 // 2)
+    planner = GridPlanner(grid, inflation=0.25)
+    for k in range(4):
+        planner((0.5, 0.5), (5.5, 1.0 + 0.5 * k))
+        assert len(planner._fields) == 1

@@ -117,3 +117,14 @@ def test_map_description_types():
         grid_from_description(0.1, [0, 0], 'wide', 1, [])
     assert grid_from_description(0.1, (0, 0), 1, 1, np.array([0.2, 0.2, 0.4, 0.4])) \
         .occupied.any()
+
+
+def test_a_map_of_more_cells_than_the_planner_holds_is_refused_with_the_reason():
+    from sela_ros.core.planning.maps import MAX_CELLS, check_geometry
+
+    check_geometry(0.05, (-175.0, -175.0), 350.0, 350.0)  # 49 M cells: taken
+    with pytest.raises(MapError, match=r'400 M cells, more than the planner holds \(50 M'):
+        check_geometry(0.05, (0.0, 0.0), 1000.0, 1000.0)
+    with pytest.raises(MapError, match='a coarser resolution or a smaller map'):
+        grid_from_description(0.001, [0.0, 0.0], 10.0, 10.0, [])
+    assert MAX_CELLS == 50_000_000
