@@ -121,8 +121,8 @@ class SelaAdapter(Node):
         except conv.MessageError as exc:
             if goal:  # the user who sent it looks on /diagnostics
                 self.report(io.Level.ERROR, f'{what}: {exc}')
-            else:  # a stream (odometry, outcomes): the log, not a status per message
-                self.get_logger().error(f'{what}: {exc}')
+            else:  # a stream (odometry, outcomes): the log, at most once a second
+                self.get_logger().error(f'{what}: {exc}', throttle_duration_sec=1.0)
             return
         if isinstance(event, io.GoalReceived):
             refusal = adapter_support.goal_refusal(self.map, event.goal, self.stepper)

@@ -229,7 +229,7 @@ class PlannerNode(Node):
         try:
             self.pose = conv.pose_from_odometry(msg)
         except conv.MessageError as exc:
-            self.get_logger().error(f'ignored odometry: {exc}')
+            self.get_logger().error(f'ignored odometry: {exc}', throttle_duration_sec=1.0)
 
     @guard
     def goal_callback(self, msg):
