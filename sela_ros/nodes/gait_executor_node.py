@@ -247,7 +247,7 @@ class GaitExecutor(Node):
         if self.gait is not None:
             problem = self._stale(now)
             if problem is None and now - self.gait.sent > self.gait_timeout:
-                problem = (f'the end of the gait was not seen in {self.odometry_topic} within '
+                problem = (f'{self.gait.unseen(self.odometry_topic, self.imu_topic)} within '
                            f'gait_timeout ({self.gait_timeout:g} s)')
             if problem is not None:
                 gait, self.gait = self.gait, None
@@ -392,6 +392,17 @@ class RunningGait:
     @property
     def ended(self):
         return self.end_msg is not None and self.attitude_after is not None
+
+    def unseen(self, odometry_topic, imu_topic):
+        """What of the gait's end was not seen: odometry, the attitude, or both."""
+        missing = []
+        if self.end_msg is None:
+            missing.append(odometry_topic)
+        if self.attitude_after is None and (self.use_imu or self.end_msg is None):
+            missing.append(imu_topic if self.use_imu else None)
+        topics = ' nor '.join(dict.fromkeys(t for t in missing if t))
+        return (f'nothing stamped at or after the end of the gait ({self.end:.2f} s) came on '
+                f'{topics}')
 
     def tilt(self):
         sample = self.attitude_within or self.attitude_after
