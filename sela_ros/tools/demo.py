@@ -111,6 +111,18 @@ def _robot_and_damage(parser, args):
         parser.error(f'--damage: {err}')
     if not args.archive and not description.archive:
         parser.error(f'--archive: the {description.name} has no shipped map; give one')
+    if args.archive:  # a map of another robot: its gaits would never be played
+        from sela_ros.core.storage import resolve_archive_path
+        from sim_bridge.robots import robot_of
+        from sim_bridge.settings import read_archive_metadata
+
+        try:
+            mapped = robot_of(read_archive_metadata(resolve_archive_path(args.archive)))
+        except (OSError, ValueError) as err:
+            parser.error(f'--archive: {err}')
+        if mapped != description.name:
+            parser.error(f'--archive: {args.archive} is a map of the {mapped}, not of the '
+                         f'{description.name}')
     return description, damage
 
 

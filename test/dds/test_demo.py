@@ -76,11 +76,16 @@ def test_demo_runs_the_hardware_path_with_interface_trajectory(tmp_path, ros_env
 
 
 def test_demo_rejects_bad_arguments_with_usage(ros_env):
-    for args in (['--damage', 'remove:middle_centre'], ['--goal', '2;2']):
+    for args, reason in ((['--damage', 'remove:middle_centre'], 'middle_centre'),
+                         (['--goal', '2;2'], '--goal'),
+                         (['--robot', 'toy', '--archive', '8d'],
+                          'is a map of the hexapod, not of the toy'),
+                         (['--archive', '/nowhere/map.npz'], '--archive: cannot read')):
         proc = subprocess.run([str(executable('sela-demo')), *args], env=ros_env,
                               capture_output=True, text=True, timeout=60)
         assert proc.returncode == 2, proc.stderr
         assert 'usage:' in proc.stderr and 'Traceback' not in proc.stderr
+        assert reason in proc.stderr, proc.stderr
 
 
 def test_a_node_that_dies_at_start_up_ends_the_demo_with_its_name_and_log(tmp_path, ros_env):
