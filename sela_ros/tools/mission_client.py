@@ -107,6 +107,7 @@ class MissionClient:
         self.namespace = namespace.rstrip('/')
         self.statuses = deque(maxlen=STATUSES_KEPT)  # heard on diagnostics (any node)
         self.steps, self.detections, self.goals_reached = [], [], []
+        self._goals = []  # the goals of the mission of several sent (follow_goals)
         self.result = self.action_result = self._mission = None
         self.goal_handle = None  # of the goal sent last
         self._goal_id = None  # its id as statuses say it
@@ -159,6 +160,10 @@ class MissionClient:
         if 'success' in values and mine:
             self.result = MissionResult(values['success'] == 'True', int(values['steps']),
                                         int(values['adaptations']), status.message, values)
+            if self.result.success and len(self.goals_reached) == len(self._goals) - 1 > 0:
+                # The last goal of several is reached with the mission: its result says so.
+                self.goals_reached.append(GoalReached(
+                    len(self._goals), np.array(self._goals[-1], float), self.result.steps))
 
     def spin_until(self, predicate, timeout, what='condition'):
         deadline = time.monotonic() + timeout
@@ -189,13 +194,15 @@ class MissionClient:
         """Send the goal (x, y) (``navigate_to_pose``); returns once the adapter has taken it
         (or ended it at once: :attr:`result` then says why)."""
         goal = ifc.NAVIGATE_TO_POSE.type.Goal(pose=conv.pose_stamped((x, y), frame_id=frame_id))
+        self._goals = []
         self._send(ifc.NAVIGATE_TO_POSE, goal, timeout)
 
     def follow_goals(self, goals, frame_id='odom', timeout=60.0):
         """Send a mission of several goals ``[(x, y), ...]``, visited in order
         (``follow_waypoints``); returns once the adapter has taken it. Each goal reached is
-        appended to :attr:`goals_reached`; the result comes after the last."""
+        appended to :attr:`goals_reached` (the last one with the result, which says it)."""
         poses = [conv.pose_stamped(g, frame_id=frame_id) for g in np.asarray(goals, float)]
+        self._goals = [tuple(map(float, g)) for g in np.asarray(goals, float)]
         self._send(ifc.FOLLOW_WAYPOINTS, ifc.FOLLOW_WAYPOINTS.type.Goal(poses=poses), timeout)
 
     def _send_goal(self, action, goal, timeout):

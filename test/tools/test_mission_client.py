@@ -188,3 +188,18 @@ def test_an_earlier_goals_late_result_while_the_next_goal_awaits_its_answer_is_i
     client.go_to_pose(1.2, 1.4, timeout=5)
     assert client._mission == '2' and client.get_result() is None
     assert client.action_result is None
+
+
+def test_the_last_goal_of_several_is_reached_with_the_result_and_counted_once():
+    client = MissionClient(_Node(), lambda t: None)
+    client._goals = [(1.0, 0.5), (2.0, 0.0)]
+    client._goal_id = 'e5f6'
+    client._diagnostics(_status(mission=9, goal='1.0 0.5', steps=0, adaptations=0,
+                                goal_id='e5f6'))
+    client._diagnostics(_status(mission=9, steps=3, adaptations=0, goal_index=2,
+                                goal_reached='1.0 0.5', goal_reached_steps=3))
+    assert [g.index for g in client.goals_reached] == [1]
+    for _ in range(2):  # said again while idle
+        client._diagnostics(_status(mission=9, success=True, steps=4, adaptations=0))
+    assert [(g.index, tuple(g.goal), g.steps) for g in client.goals_reached] == [
+        (1, (1.0, 0.5), 3), (2, (2.0, 0.0), 4)]
