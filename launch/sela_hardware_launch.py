@@ -44,6 +44,10 @@ def generate_launch_description():
         DeclareLaunchArgument('trajectory_topic',
                               default_value='joint_trajectory_controller/joint_trajectory',
                               description="the joint_trajectory_controller's command topic"),
+        DeclareLaunchArgument('robot', default_value='hexapod',
+                              description='the robot description the gait executor plays the '
+                              'gaits of: hexapod, a1, toy or package.module:DESCRIPTION '
+                              '(docs/robots.md)'),
         DeclareLaunchArgument('archive', default_value='',
                               description="archive file ('' = the shipped one)"),
         DeclareLaunchArgument('map', default_value='',
@@ -57,6 +61,7 @@ def generate_launch_description():
         Node(package='sela_ros', executable='gait_executor', name='gait_executor',
              output='screen',
              parameters=[params, WALL_CLOCK, {
+                 'robot': LaunchConfiguration('robot'),
                  'odometry_topic': LaunchConfiguration('odometry_topic'),
                  'imu_topic': LaunchConfiguration('imu_topic'),
                  'trajectory_topic': LaunchConfiguration('trajectory_topic')}]),

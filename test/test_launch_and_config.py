@@ -235,6 +235,9 @@ def test_the_hardware_launch_runs_the_stack_on_a_robots_own_topics(monkeypatch):
     detector = nodes['damage_detector'].kwargs['parameters'][2]
     assert 'sim_bridge' not in detector['heartbeat.nodes']
     assert set(detector['heartbeat.nodes']) <= set(ifc.ALIVE)
+    # The robot the executor plays the gaits of is an argument (the hexapod by default).
+    assert arguments['robot'] == 'hexapod'
+    assert nodes['gait_executor'].kwargs['parameters'][2]['robot'].args[0] == 'robot'
 
 
 def test_rviz_config_shows_the_robot_and_sets_goals_on_goal_pose():
