@@ -40,6 +40,9 @@ from sela_ros.core.mission.stepper_io import (
 from sela_ros.core.planning import next_waypoint
 from sela_ros.core.validation import ImplausibleOutcome, OutcomeLimits, check_outcome
 
+#: Ends of a mission its client asked for: said as WARN, not as a failure.
+USER_ENDS = ('canceled', 'preempted')
+
 
 class MissionStepper:
     """The step cycle of one robot: feed it events, carry out the commands it returns.
@@ -530,8 +533,7 @@ class MissionStepper:
         # Acknowledged means durable: the result is announced once its save is on disk (a
         # client that heard it and stops the adapter at once finds the mission done after a
         # restart, not half done).
-        return [Report(Level.OK if success else Level.ERROR,
-                       f'{reason} after {self.steps} steps{where}'),
+        return [Report(self._end_level(), f'{reason} after {self.steps} steps{where}'),
                 self._save(), self._result_status(),
                 MissionEnded(self.mission_id, success, code, reason, self.steps,
                              None if pose is None else tuple(float(v) for v in pose),
@@ -543,10 +545,16 @@ class MissionStepper:
         """The mission status as text values (see :mod:`sela_ros.core.mission.status`)."""
         return mission_status(self, reward)
 
+    def _end_level(self):
+        """How the mission's end is said: OK reached, WARN ended by its client (canceled, or
+        preempted by a new goal: what the user asked for), ERROR failed."""
+        if self.result:
+            return Level.OK
+        return Level.WARN if self.ended[0] in USER_ENDS else Level.ERROR
+
     def _result_status(self):
         code, reason = self.ended
-        return PublishStatus(Level.OK if self.result else Level.ERROR, reason,
-                             dict(self.status(), code=code))
+        return PublishStatus(self._end_level(), reason, dict(self.status(), code=code))
 
     def _bound_learning(self):
         """Over a robot's life, learning keeps the latest ``max_observations`` observations

@@ -604,6 +604,10 @@ def test_a_cancel_ends_the_mission_after_the_running_gait_and_no_gait_follows():
     end = only(out, MissionEnded)
     assert (end.success, end.code, end.steps) == (False, 'canceled', 1)
     assert not of(out, SendGait) and not of(out, RequestPlan) and d.state is State.DONE
+    # What the user asked for is no failure: said as a warning, the result too.
+    ended = [s for s in of(out, PublishStatus) if 'success' in s.values]
+    assert [s.level for s in ended] == [Level.WARN]
+    assert all(r.level is Level.WARN for r in of(out, Report) if 'canceled' in r.message)
     assert of(d(Tick(), dt=100.0), SendGait) == []
     assert not only(d(CancelRequested()), Reply).success  # nothing left to cancel
 
