@@ -36,6 +36,30 @@ def simulated_hardware(description, robot=None):
             'fall.min_height': float(description.fall_height)}
 
 
+def _stack_nodes_running(wait=4.0):
+    """The stack's nodes already in the root namespace of this domain, as discovery shows them
+    within ``wait`` seconds: at once mostly, at the latest with their participants' next
+    announcement (every 3 s with Fast DDS's defaults)."""
+    import rclpy
+    from rclpy.node import Node
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = Node('sela_demo_lookout', context=context)
+        names = set(NODES) | {'gait_executor'}
+        deadline = time.monotonic() + wait
+        found = []
+        while not found and time.monotonic() < deadline:
+            found = sorted({n for n, ns in node.get_node_names_and_namespaces()
+                            if ns == '/' and n in names})
+            time.sleep(0.05)
+        node.destroy_node()
+        return found
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
@@ -147,6 +171,11 @@ def main(argv=None):
     if args.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
     ensure_ros_environment()
+    running = _stack_nodes_running()
+    if running:  # the demo's goal would be walked by that stack, its learning changed
+        parser.error(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} already runs "
+                     f"{', '.join(running)} in the root namespace (another stack or demo): "
+                     'stop it, or give --domain-id')
     # SIGTERM (`timeout`, a supervisor) ends the demo as Ctrl-C does: the nodes stopped.
     signal.signal(signal.SIGTERM, _interrupt)
     out = Path(args.out)

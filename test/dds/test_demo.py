@@ -103,6 +103,26 @@ def test_a_node_that_dies_at_start_up_ends_the_demo_with_its_name_and_log(tmp_pa
     assert summary['success'] is False and 'exited' in summary['problem']
 
 
+def test_a_demo_on_a_domain_where_a_stack_runs_is_refused_with_the_reason(tmp_path, ros_env):
+    """Its goal would be walked by that stack, and that stack's learning changed."""
+    from rcl_interfaces.srv import GetParameters
+    from ros_graph import Client, NodeProcesses
+
+    nodes = NodeProcesses(names=('planner',))
+    client = Client('demo_lookout_test')
+    try:
+        get = client.node.create_client(GetParameters, '/planner/get_parameters')
+        client.call(get, GetParameters.Request(names=['frame_id']), timeout=90)  # it is up
+        proc = subprocess.run([str(executable('sela-demo')), '--out', str(tmp_path)],
+                              env=ros_env, capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2, proc.stdout + proc.stderr
+        assert 'already runs planner' in proc.stderr and '--domain-id' in proc.stderr
+        assert all(nodes.alive().values())
+    finally:
+        client.close()
+        nodes.stop()
+
+
 def test_demo_takes_goals_with_negative_coordinates_as_written():
     from sela_ros.tools.demo import build_parser
 
