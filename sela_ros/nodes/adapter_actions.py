@@ -59,9 +59,9 @@ _SERVICE_QOS = QoSProfile(depth=SERVICE_DEPTH, history=HistoryPolicy.KEEP_LAST,
                           reliability=ReliabilityPolicy.RELIABLE)
 
 
-def _seconds(node):
-    """The node's clock now (s): the simulator's under use_sim_time."""
-    return node.get_clock().now().nanoseconds * 1e-9
+def _seconds(time):
+    """A time of the node's clock in seconds (the simulator's under use_sim_time)."""
+    return time.nanoseconds * 1e-9
 
 
 def _duration(seconds):
@@ -177,7 +177,8 @@ class MissionActions:
             self.node.report(io.Level.ERROR, message)
             return self._finish(handle, action, False, code, message,
                                 self._missed(poses, first, 0, goals, ended_at=(index, code)))
-        binding = Binding(handle, action, goals, poses, first, _seconds(self.node))
+        binding = Binding(handle, action, goals, poses, first,
+                          _seconds(self.node.get_clock().now()))
         stepper = self.node.stepper
         before = stepper.mission_id
         self.node.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
@@ -270,7 +271,7 @@ class MissionActions:
             start = vector_from_text(values['pose']) if 'pose' in values else pose
             binding.start_distance = math.hypot(goal[0] - start[0], goal[1] - start[1])
         now = self.node.get_clock().now()
-        elapsed = now.nanoseconds * 1e-9 - binding.started
+        elapsed = _seconds(now) - binding.started
         progress = binding.start_distance - left
         feedback = ifc.NAVIGATE_TO_POSE.type.Feedback(
             current_pose=conv.pose_stamped(pose[:2], pose[2], stamp=now.to_msg(),

@@ -313,11 +313,9 @@ def pose_from_odometry(msg):
     p = msg.pose.pose
     pose = np.array([p.position.x, p.position.y, quaternion_to_yaw(p.orientation)])
     pose = _finite_array(pose, 'odometry pose', 3)
-    far = np.abs(pose[:2]) > ODOMETRY_LIMIT
-    if far.any():
-        axis = 'xy'[int(np.flatnonzero(far)[0])]
-        raise MessageError(f'odometry pose: {axis} {pose[int(np.flatnonzero(far)[0])]:g} m is '
-                           f'beyond {ODOMETRY_LIMIT:g} m of the odom origin')
+    for i in np.flatnonzero(np.abs(pose[:2]) > ODOMETRY_LIMIT)[:1]:
+        raise MessageError(f"odometry pose: {'xy'[i]} {pose[i]:g} m is beyond "
+                           f'{ODOMETRY_LIMIT:g} m of the odom origin')
     return pose
 
 

@@ -395,14 +395,11 @@ class RunningGait:
 
     def unseen(self, odometry_topic, imu_topic):
         """What of the gait's end was not seen: odometry, the attitude, or both."""
-        missing = []
-        if self.end_msg is None:
-            missing.append(odometry_topic)
-        if self.attitude_after is None and (self.use_imu or self.end_msg is None):
-            missing.append(imu_topic if self.use_imu else None)
-        topics = ' nor '.join(dict.fromkeys(t for t in missing if t))
+        missing = [odometry_topic] if self.end_msg is None else []
+        if self.use_imu and self.attitude_after is None:  # else the attitude is odometry's
+            missing.append(imu_topic)
         return (f'nothing stamped at or after the end of the gait ({self.end:.2f} s) came on '
-                f'{topics}')
+                f"{' nor '.join(missing)}")
 
     def tilt(self):
         sample = self.attitude_within or self.attitude_after
