@@ -53,6 +53,18 @@ def seed(text):
     return value
 
 
+#: The largest seed a node's ``seed`` parameter takes (rclpy's integer range for it).
+NODE_SEED_MAX = 2**31 - 1
+
+
+def node_seed(text):
+    """A seed that a node's ``seed`` parameter takes: 0 to :data:`NODE_SEED_MAX`."""
+    value = seed(text)
+    if value > NODE_SEED_MAX:
+        raise argparse.ArgumentTypeError(f'expected a seed <= {NODE_SEED_MAX}, got {value}')
+    return value
+
+
 def method_list(text):
     names = [n.strip() for n in text.split(',') if n.strip()]
     unknown = [n for n in names if n not in METHODS]

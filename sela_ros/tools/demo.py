@@ -93,7 +93,9 @@ def build_parser():
                         help='an obstacle course shipped in config/maps (wall_gap, corridor, '
                         "maze) or a map YAML: the planner's map; without --goal the mission "
                         "visits the course's goals in order")
-    parser.add_argument('--seed', type=int, default=0, help='observation-noise seed')
+    parser.add_argument('--seed', type=arguments.node_seed, default=0,
+                        help=f'observation-noise seed, 0 to {arguments.NODE_SEED_MAX} '
+                        '(default: %(default)s)')
     parser.add_argument('--gui', action='store_true', help="show PyBullet's window")
     parser.add_argument('--interface', choices=('behavior', 'trajectory'), default='behavior',
                         help='behavior: the simulator plays the gaits; trajectory: the '
@@ -376,8 +378,9 @@ def run_client(args, damage, out, procs):
     elif result is None:
         print(f"sela-demo: {problem or 'no result from the adapter'}", file=sys.stderr,
               flush=True)
+    started = summary['learning_started_at_step']
     print(f"sela-demo: {verdict} in {summary['steps']} steps "
-          f"(adaptation from step {summary['learning_started_at_step']}, "
+          f"({'no adaptation' if started is None else f'adaptation from step {started}'}, "
           f"{summary['detections']} detection(s)), final distance "
           f"{_metres(summary['final_distance_to_goal'])}, {wall:.1f} s wall; "
           f"wrote {out}/summary.json, trajectory.png, mission.mcap", flush=True)

@@ -80,7 +80,9 @@ def test_demo_rejects_bad_arguments_with_usage(ros_env):
                          (['--goal', '2;2'], '--goal'),
                          (['--robot', 'toy', '--archive', '8d'],
                           'is a map of the hexapod, not of the toy'),
-                         (['--archive', '/nowhere/map.npz'], '--archive: cannot read')):
+                         (['--archive', '/nowhere/map.npz'], '--archive: cannot read'),
+                         (['--seed', str(2**40)], 'expected a seed <= 2147483647'),
+                         (['--seed', '-1'], 'expected a seed >= 0')):
         proc = subprocess.run([str(executable('sela-demo')), *args], env=ros_env,
                               capture_output=True, text=True, timeout=60)
         assert proc.returncode == 2, proc.stderr
@@ -99,6 +101,7 @@ def test_a_node_that_dies_at_start_up_ends_the_demo_with_its_name_and_log(tmp_pa
     assert proc.returncode == 1, proc.stderr
     assert 'exited; see' in proc.stderr and 'not valid YAML' in proc.stderr, proc.stderr
     assert 'Traceback' not in proc.stderr, proc.stderr
+    assert 'goal NOT reached in 0 steps (no adaptation, ' in proc.stdout, proc.stdout
     summary = json.loads((tmp_path / 'out' / 'summary.json').read_text())
     assert summary['success'] is False and 'exited' in summary['problem']
 
