@@ -18,6 +18,7 @@ rewards that the oracle plans with.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import time
@@ -29,7 +30,7 @@ from sela_ros.core.learning import params_checksum
 from sela_ros.core.storage import atomic_write
 from sim_bridge.environment import ObservedHexapod
 from sim_bridge.evaluation import evaluate_gait, worker_pool
-from sim_bridge.robots import get_robot
+from sim_bridge.robots import get_robot, robot_spec
 from sim_bridge.settings import SIM_DEFAULTS, simulator_settings
 from sim_bridge.simulator import Simulator
 
@@ -163,20 +164,26 @@ def _evaluate_chunk(job):
 
 def compute_oracle_table(params, damage, workers=1, dt=1.0 / 240.0, gait_duration=3.0,
                          solver_iterations=50,
-                         chunk_size=25, robot=None):
-    """``(generic_reward (M, 3), fallen (M,))`` of every gait on the damaged robot."""
+                         chunk_size=25, robot=None, progress=None):
+    """``(generic_reward (M, 3), fallen (M,))`` of every gait on the damaged robot;
+    ``progress`` (if given) is called with the number of gaits of each chunk done."""
     params = np.asarray(params, dtype=float)
     description = get_robot(robot)
     spec = description.parse_damage(damage).canonical()
     chunks = [params[i:i + chunk_size] for i in range(0, len(params), chunk_size)]
-    # The robot travels to worker processes by name (descriptions of ROBOTS are found there).
-    jobs = [(c, spec, dt, gait_duration, solver_iterations, description.name)
+    # The robot travels to worker processes as a string that finds it there.
+    jobs = [(c, spec, dt, gait_duration, solver_iterations, robot_spec(description))
             for c in chunks]
-    if workers <= 1 or len(chunks) <= 1:
-        rows = [_evaluate_chunk(j) for j in jobs]
-    else:
-        with worker_pool(workers) as pool:
-            rows = list(pool.map(_evaluate_chunk, jobs))
+    rows = []
+    with contextlib.ExitStack() as stack:
+        if workers <= 1 or len(chunks) <= 1:
+            done = map(_evaluate_chunk, jobs)
+        else:
+            done = stack.enter_context(worker_pool(workers)).map(_evaluate_chunk, jobs)
+        for row in done:
+            rows.append(row)
+            if progress is not None:
+                progress(len(row))
     table = np.concatenate(rows) if rows else np.zeros((0, 4))
     return table[:, :3], table[:, 3].astype(bool)
 
@@ -201,8 +208,9 @@ def cached_oracle_table(params, damage, cache_dir=None, dt=1.0 / 240.0, gait_dur
 
 
 def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
-                 gait_duration=3.0, solver_iterations=50, robot=None):
-    """:func:`compute_oracle_table`, cached on disk (atomic write; a bad file is redone).
+                 gait_duration=3.0, solver_iterations=50, robot=None, progress=None):
+    """:func:`compute_oracle_table`, cached on disk (atomic write; a bad file is redone);
+    ``progress`` is called only when the table is computed.
 
     Returns:
         ``(generic_reward (M, 3), fallen (M,))``.
@@ -215,7 +223,7 @@ def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
     path = oracle_cache_path(params, damage, cache_dir, dt, gait_duration, solver_iterations,
                              description)
     gr, fallen = compute_oracle_table(params, damage, workers, dt, gait_duration,
-                                      solver_iterations, robot=description)
+                                      solver_iterations, robot=description, progress=progress)
     atomic_write(path, lambda handle: np.savez(
         handle, generic_reward=gr, fallen=fallen,
         damage=np.array(description.parse_damage(damage).canonical())))

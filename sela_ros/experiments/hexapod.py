@@ -36,6 +36,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,11 +79,12 @@ def archive_argument(text):
 def finish_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """After parsing: the robot, its archive and the damage in its names, checked together.
 
-    ``args.robot`` becomes the archive's robot, ``args.archive`` a path, ``args.damage`` the
+    ``args.robot`` becomes what finds the archive's robot in any process
+    (:func:`sim_bridge.robots.robot_spec`), ``args.archive`` a path, ``args.damage`` the
     damage's canonical form."""
     from sela_ros.core.storage import load_archive
     from sim_bridge.damage import DamageSpecError
-    from sim_bridge.robots import get_robot, robot_of
+    from sim_bridge.robots import ROBOTS, get_robot, robot_of, robot_spec
 
     try:
         wanted = get_robot(args.robot) if args.robot is not None else None
@@ -101,8 +103,13 @@ def finish_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
     if wanted is not None and wanted.name != robot:
         parser.error(f'--archive {args.archive} is a map of the {robot}, not of the '
                      f'{wanted.name}')
-    description = get_robot(robot)
-    args.robot = description.name
+    try:
+        description = wanted or get_robot(robot)
+    except ValueError:
+        parser.error(f'--archive {args.archive} is a map of the robot {robot!r}, which is not '
+                     f'one of {", ".join(ROBOTS)}: give its description, --robot '
+                     'package.module:DESCRIPTION (docs/robots.md)')
+    args.robot = robot_spec(description)
     try:
         args.damage = description.parse_damage(
             description.default_damage if args.damage is None else args.damage).canonical()
@@ -322,6 +329,37 @@ class Job:
     # (M, 3) the GPs' prior mean in place of the map's (None: the map's): what SELA does with
     # a given table as its prior, for bounds (scripts/compare_priors.py, bound-own, bound-fit)
     prior_mean: object = None
+    robot: str = None  # what finds the robot in a worker (None: the archive's, by its name)
+
+
+class _OracleProgress:
+    """The oracle's table, when it is simulated (not cached): a line that says so, then a
+    bar of the gaits done on stderr (none with ``--quiet``)."""
+
+    def __init__(self, gaits, damage, workers, quiet):
+        self.gaits, self.damage, self.workers, self.quiet = gaits, damage, workers, quiet
+        self.bar = None
+
+    def __enter__(self):
+        return self
+
+    def update(self, count):
+        if self.quiet:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            tqdm.write(f"the oracle's table of '{self.damage}' is not cached: simulating all "
+                       f'{self.gaits:,} gaits of the map on {self.workers} worker(s) '
+                       '(--workers; once per damage, then cached: --oracle-cache)',
+                       file=sys.stderr)
+            self.bar = tqdm(total=self.gaits, desc='oracle table', unit='gait',
+                            file=sys.stderr, position=1, leave=False)
+        self.bar.update(count)
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.close()
 
 
 def run_method(job: Job):
@@ -342,7 +380,7 @@ def run_method(job: Job):
     with RobotEnvironment(archive.params, job.damage, noise_std=job.noise_std, seed=noise,
                           dt=settings['dt'], gait_duration=settings['gait_duration'],
                           solver_iterations=settings['solver_iterations'],
-                          robot=robot_of(archive.metadata)) as sim:
+                          robot=job.robot or robot_of(archive.metadata)) as sim:
         env = CourseEnvironment(sim, grid) if grid is not None else sim
         problem = make_problem(archive, job.goal, job.lookahead, job.max_steps,
                                true_gr=job.oracle_gr, ite_iterations=job.ite_iterations,
@@ -395,20 +433,23 @@ def run(args, progress=None) -> dict:
     from sela_ros.core.storage import load_archive
     from sim_bridge.evaluation import worker_pool
     from sim_bridge.experiment_env import archive_checksum, oracle_table
-    from sim_bridge.robots import robot_of
+    from sim_bridge.robots import get_robot, robot_of
 
     archive = load_archive(args.archive)
-    robot = robot_of(archive.metadata)
+    robot = getattr(args, 'robot', None) or robot_of(archive.metadata)
     settings = archive.simulator_settings
     oracle_gr = None
     oracle_seconds = 0.0
     oracle_falls = 0
     if {'oracle', 'oracle_2step'} & set(args.methods):
         start = time.perf_counter()
-        gr, fallen = oracle_table(archive.params, args.damage, workers=args.workers,
-                                  cache_dir=args.oracle_cache, dt=settings['dt'],
-                                  gait_duration=settings['gait_duration'],
-                                  solver_iterations=settings['solver_iterations'], robot=robot)
+        with _OracleProgress(len(archive.params), args.damage, args.workers,
+                             getattr(args, 'quiet', False)) as shown:
+            gr, fallen = oracle_table(archive.params, args.damage, workers=args.workers,
+                                      cache_dir=args.oracle_cache, dt=settings['dt'],
+                                      gait_duration=settings['gait_duration'],
+                                      solver_iterations=settings['solver_iterations'],
+                                      robot=robot, progress=shown.update)
         oracle_seconds = time.perf_counter() - start
         oracle_gr = np.where(fallen[:, None], FALLEN_GR, gr)
         oracle_falls = int(fallen.sum())
@@ -443,7 +484,7 @@ def run(args, progress=None) -> dict:
                             args.fall_risk, map_path, inflation, tuple(map(tuple, via)),
                             getattr(args, 'fall_kernel_sigma', None),
                             getattr(args, 'fall_cost', None), priors_value, leave_out_own,
-                            getattr(args, 'horizon', None)))
+                            getattr(args, 'horizon', None), robot=robot))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()
@@ -490,7 +531,7 @@ def run(args, progress=None) -> dict:
             summary[name]['runs_with_collisions'] = int(sum(c > 0 for c in m['collisions']))
     return {'scenario': 'hexapod', 'replicates': args.replicates, 'methods': methods,
             'seed': args.seed,
-            'parameters': {'robot': robot, 'noise_std': args.noise_std,
+            'parameters': {'robot': get_robot(robot).name, 'noise_std': args.noise_std,
                            'max_steps': args.max_steps,
                            'damage': args.damage, 'goal': list(goal), 'via': via,
                            'start': [0.0, 0.0, 0.0], 'lookahead': args.lookahead,

@@ -32,6 +32,10 @@ ROBOTS = {
 }
 DEFAULT_ROBOT = 'hexapod'
 
+#: Descriptions found as ``module:attribute`` in this process, by their name: a map stamps
+#: its robot's name only, and whoever loads the map finds the description by that name.
+_IMPORTED: dict[str, str] = {}
+
 
 class RobotDescription:
     """One robot, as the simulator, the map builder and the nodes need it.
@@ -180,7 +184,7 @@ def get_robot(robot=None) -> RobotDescription:
     if not isinstance(robot, str):
         raise ValueError(f'robot must be a name such as {DEFAULT_ROBOT!r}, got '
                          f'{type(robot).__name__}')
-    target = ROBOTS.get(robot, robot)
+    target = ROBOTS.get(robot) or _IMPORTED.get(robot, robot)
     module_name, colon, attribute = target.partition(':')
     if not colon:
         raise ValueError(f'unknown robot {robot!r}; known robots: {", ".join(ROBOTS)} (or '
@@ -193,7 +197,29 @@ def get_robot(robot=None) -> RobotDescription:
         found = found()
     if not isinstance(found, RobotDescription):
         raise ValueError(f'robot {robot!r}: {target} is not a RobotDescription')
+    if found.name not in ROBOTS:
+        _IMPORTED.setdefault(found.name, target)
     return found
+
+
+def robot_spec(robot) -> str:
+    """What finds ``robot`` (as :func:`get_robot` takes it) in any process, a worker's too:
+    a name of :data:`ROBOTS`, else the ``module:attribute`` its description was found as.
+
+    Raises:
+        ValueError: no such robot, or a description that no module attribute holds.
+    """
+    description = get_robot(robot)
+    if description.name in ROBOTS:
+        return description.name
+    if description.name in _IMPORTED:
+        return _IMPORTED[description.name]
+    module = type(description).__module__
+    for attribute, value in vars(importlib.import_module(module)).items():
+        if value is description:
+            return f'{module}:{attribute}'
+    raise ValueError(f'robot {description.name!r}: no module attribute holds its description; '
+                     "give it as 'package.module:DESCRIPTION'")
 
 
 def robot_of(metadata: dict) -> str:

@@ -109,6 +109,7 @@ def test_a_node_that_dies_at_start_up_ends_the_demo_with_its_name_and_log(tmp_pa
 def test_a_demo_on_a_domain_where_a_stack_runs_is_refused_with_the_reason(tmp_path, ros_env):
     """Its goal would be walked by that stack, and that stack's learning changed."""
     from rcl_interfaces.srv import GetParameters
+
     from ros_graph import Client, NodeProcesses
 
     nodes = NodeProcesses(names=('planner',))

@@ -66,3 +66,56 @@ def test_the_shipped_a1_map_is_the_a1_s_and_its_gaits_do_what_it_says():
                                 solver_iterations=settings['solver_iterations'], robot='a1')
         np.testing.assert_allclose(outcome.generic_reward, archive.generic_reward[i],
                                    atol=1e-6)
+
+
+USER_ROBOT = '''
+from sim_bridge.robots.toy import ToyDescription
+
+
+class UserBot(ToyDescription):
+    name = 'userbot'
+    model_version = 'userbot-v1'
+
+
+DESCRIPTION = UserBot()
+'''
+
+
+def test_a_robot_of_the_user_s_own_module_runs_the_experiment_in_worker_processes(tmp_path):
+    """Its map stamps only its name; the experiment finds it by ``--robot module:ATTR``, its
+    runs and its oracle's table in worker processes too, and without ``--robot`` says why."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / 'userbot_description.py').write_text(USER_ROBOT)
+    env = {**os.environ, 'PYTHONPATH': os.pathsep.join(
+        [str(tmp_path), *filter(None, [os.environ.get('PYTHONPATH')])])}
+    spec = 'userbot_description:DESCRIPTION'
+    out = tmp_path / 'userbot.npz'
+    args = ['--robot', spec, *TOY_ARGS[2:], '--evaluations', '24', '--out', str(out)]
+    subprocess.run([sys.executable, '-m', 'sela_ros.tools.build_archive', *args], env=env,
+                   check=True, capture_output=True, timeout=300)
+    assert robot_of(load_archive(out).metadata) == 'userbot'
+
+    def experiment(*extra):
+        return subprocess.run(
+            [sys.executable, '-m', 'sela_ros.experiments.cli', 'robot', '--archive', str(out),
+             '--goal', '0.2,0', '--replicates', '2', '--max-steps', '3', '--workers', '2',
+             '--methods', 'sela,oracle', '--oracle-cache', str(tmp_path / 'cache'),
+             '--out', str(tmp_path / 'exp'), *extra],
+            env=env, capture_output=True, text=True, timeout=300)
+
+    refused = experiment()
+    assert refused.returncode == 2, refused.stderr
+    assert "a map of the robot 'userbot'" in refused.stderr, refused.stderr
+    assert '--robot package.module:DESCRIPTION' in refused.stderr
+    assert 'Traceback' not in refused.stderr
+    done = experiment('--robot', spec)
+    assert done.returncode == 0, done.stderr
+    assert "the oracle's table of 'intact' is not cached" in done.stderr, done.stderr
+    doc = json.loads((tmp_path / 'exp' / 'results.json').read_text())
+    assert doc['parameters']['robot'] == 'userbot'
+    assert len(doc['methods']['oracle']['steps']) == 2
+    assert list((tmp_path / 'cache').glob('oracle_*.npz'))

@@ -96,3 +96,12 @@ def test_an_unknown_robot_is_refused_with_the_known_ones():
         get_robot('octopod')
     with pytest.raises(ValueError, match='cannot import'):
         get_robot('no_such_module:ROBOT')
+
+
+def test_robot_spec_finds_a_description_in_another_process_by_a_string():
+    from sim_bridge.robots import robot_spec
+    from sim_bridge.robots.toy import TOY
+
+    assert robot_spec('hexapod') == 'hexapod' and robot_spec(TOY) == 'toy'
+    with pytest.raises(ValueError, match='unknown robot'):
+        robot_spec('no_such_robot')
