@@ -99,6 +99,9 @@ def robot_nodes(context, share):
     spec = LaunchConfiguration('robot').perform(context)  # the nodes find it by this
     robot = get_robot(spec)
     archive = LaunchConfiguration('archive').perform(context) or robot.archive
+    if not archive:
+        raise ValueError(f'the {robot.name} has no shipped map: build one (docs/robots.md) '
+                         'and give it, archive:=PATH')
     damage = LaunchConfiguration('damage').perform(context) or robot.default_damage
     params = LaunchConfiguration('params_file')
     hardware = IfCondition(EqualsSubstitution(LaunchConfiguration('interface'), 'trajectory'))

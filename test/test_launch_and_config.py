@@ -212,6 +212,13 @@ def test_a_robot_named_by_its_import_path_reaches_the_nodes_as_named(monkeypatch
     for name in ('sim_bridge', 'gait_executor'):  # each finds the description by it
         assert nodes[name].kwargs['parameters'][1]['robot'] == 'sim_bridge.robots.a1:A1'
     assert nodes['sela_adapter'].kwargs['parameters'][1]['archive'] == 'a1'
+    # A robot without a shipped map needs its own: said before any node starts.
+    with pytest.raises(ValueError, match='the toy has no shipped map.*archive:=PATH'):
+        _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='sim_bridge.robots.toy:TOY')
+    launch = _load_launch(monkeypatch, 'sela_hexapod_launch.py',
+                          robot='sim_bridge.robots.toy:TOY', archive='/maps/toy.npz')
+    nodes = {n.kwargs['executable']: n for n in _nodes(launch)}
+    assert nodes['sela_adapter'].kwargs['parameters'][1]['archive'] == '/maps/toy.npz'
 
 
 def test_the_hardware_launch_runs_the_stack_on_a_robots_own_topics(monkeypatch):
