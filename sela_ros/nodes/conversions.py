@@ -112,8 +112,12 @@ def time_from_msg(stamp):
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def _finite_array(values, name, length=None):
-    return finite_array(values, name, length, error=MessageError)
+def _finite_array(values, name, length=None, labels=None):
+    return finite_array(values, name, length, error=MessageError, labels=labels)
+
+
+#: The names of a pose's x and y in a message that carries a geometry_msgs/Pose.
+POSITION_XY = ('position.x', 'position.y')
 
 
 # --- behaviour commands --------------------------------------------------------------------
@@ -312,7 +316,9 @@ ODOMETRY_LIMIT = 1e6
 def pose_from_odometry(msg):
     p = msg.pose.pose
     pose = np.array([p.position.x, p.position.y, quaternion_to_yaw(p.orientation)])
-    pose = _finite_array(pose, 'odometry pose', 3)
+    pose = _finite_array(pose, 'odometry pose', 3,
+                         labels=('pose.pose.position.x', 'pose.pose.position.y',
+                                 'the yaw of pose.pose.orientation'))
     for i in np.flatnonzero(np.abs(pose[:2]) > ODOMETRY_LIMIT)[:1]:
         raise MessageError(f"odometry pose: {'xy'[i]} {pose[i]:g} m is beyond "
                            f'{ODOMETRY_LIMIT:g} m of the odom origin')
@@ -325,7 +331,8 @@ def goal_from_pose_stamped(msg, expected_frame='odom'):
     if frame not in (expected_frame, ''):
         raise MessageError(f"goal_pose: frame '{frame}' is not supported; "
                            f"send the goal in '{expected_frame}'")
-    return _finite_array([msg.pose.position.x, msg.pose.position.y], 'goal_pose', 2)
+    return _finite_array([msg.pose.position.x, msg.pose.position.y], 'goal_pose', 2,
+                         labels=POSITION_XY)
 
 
 def goals_from_path(msg, expected_frame='odom'):
@@ -342,7 +349,7 @@ def goals_from_path(msg, expected_frame='odom'):
             raise MessageError(f"goal_path: pose {i} is in frame '{frame}'; send the goals "
                                f"in '{expected_frame}'")
         goals.append(tuple(_finite_array([pose.pose.position.x, pose.pose.position.y],
-                                         f'goal_path pose {i}', 2)))
+                                         f'goal_path pose {i}', 2, labels=POSITION_XY)))
     return goals
 
 

@@ -196,7 +196,7 @@ def test_a_goal_off_the_map_is_aborted_with_the_reason(stack):
 
 @pytest.mark.parametrize('field, value, reason', [
     ('frame_id', 'map', "frame 'map' is not supported"),
-    ('x', math.nan, 'value 0 is nan; expected finite numbers')])
+    ('x', math.nan, 'goal_pose: position.x is nan; expected finite numbers')])
 def test_a_malformed_goal_is_aborted_and_said_on_diagnostics(stack, field, value, reason):
     nodes, user = stack
     pose = user.goal_ahead(0.5, 0.0)

@@ -29,9 +29,10 @@ def check_number(name, value, **limits):
     return value
 
 
-def finite_array(values, name, length=None, error=ValueError):
+def finite_array(values, name, length=None, error=ValueError, labels=None):
     """``values`` as a flat float array of finite numbers (``length`` of them if given);
-    otherwise raise ``error`` saying which value is wrong."""
+    otherwise raise ``error`` saying which value is wrong (by its name in ``labels``, one per
+    value, where given; else by its index)."""
     try:
         array = np.asarray(values, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
@@ -40,6 +41,8 @@ def finite_array(values, name, length=None, error=ValueError):
         raise error(f'{name}: expected {length} values, got {array.size}')
     bad = ~np.isfinite(array)
     if bad.any():
-        raise error(f'{name}: value {int(np.flatnonzero(bad)[0])} is {array[bad][0]}; '
-                    'expected finite numbers')
+        first = int(np.flatnonzero(bad)[0])
+        which = labels[first] if labels is not None and first < len(labels) else \
+            f'value {first}'
+        raise error(f'{name}: {which} is {array[first]}; expected finite numbers')
     return array

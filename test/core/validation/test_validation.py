@@ -35,6 +35,8 @@ def test_finite_array_says_which_value_and_raises_the_callers_error():
     assert np.array_equal(finite_array([[1, 2]], 'x'), [1.0, 2.0])
     with pytest.raises(Bad, match=r'x: value 1 is inf; expected finite numbers'):
         finite_array([0.0, math.inf], 'x', error=Bad)
+    with pytest.raises(ValueError, match=r'goal: position.y is nan; expected finite numbers'):
+        finite_array([0.0, math.nan], 'goal', labels=('position.x', 'position.y'))
     with pytest.raises(ValueError, match='expected 3 values, got 2'):
         finite_array([0.0, 1.0], 'x', length=3)
     with pytest.raises(ValueError, match='expected numbers'):
