@@ -325,13 +325,14 @@ def pose_from_odometry(msg):
     return pose
 
 
-def goal_from_pose_stamped(msg, expected_frame='odom'):
-    """Return the goal (x, y) of a PoseStamped; the frame must be ``expected_frame``."""
+def goal_from_pose_stamped(msg, expected_frame='odom', name='goal_pose'):
+    """Return the goal (x, y) of a PoseStamped; the frame must be ``expected_frame``.
+    ``name``: what a refusal calls it (a topic, a request's field)."""
     frame = msg.header.frame_id
     if frame not in (expected_frame, ''):
-        raise MessageError(f"goal_pose: frame '{frame}' is not supported; "
-                           f"send the goal in '{expected_frame}'")
-    return _finite_array([msg.pose.position.x, msg.pose.position.y], 'goal_pose', 2,
+        raise MessageError(f"{name}: frame '{frame}' is not supported; "
+                           f"send it in '{expected_frame}'")
+    return _finite_array([msg.pose.position.x, msg.pose.position.y], name, 2,
                          labels=POSITION_XY)
 
 

@@ -250,12 +250,12 @@ class PlannerNode(Node):
     @guard_service
     def make_plan_callback(self, request, response):
         try:
-            start = conv.goal_from_pose_stamped(request.start, self.frame_id)
+            start = conv.goal_from_pose_stamped(request.start, self.frame_id, 'start')
             if (request.goal.header.frame_id == '' and request.goal.pose.position.x == 0.0
                     and request.goal.pose.position.y == 0.0 and self.goal is not None):
                 goal = self.goal  # an empty goal means: the current /goal_pose
             else:
-                goal = conv.goal_from_pose_stamped(request.goal, self.frame_id)
+                goal = conv.goal_from_pose_stamped(request.goal, self.frame_id, 'goal')
             response.plan = self._plan(start, goal, request.start.header.stamp)
         except (conv.MessageError, PlanningError, ValueError) as exc:
             self._report(DiagnosticStatus.ERROR, f'make_plan failed: {exc}')

@@ -1,5 +1,6 @@
 """The planner node over DDS: maps from a map_server file, from the ``map`` topic, and bad
 maps refused with the reason while the current map is kept."""
+import math
 from pathlib import Path
 
 import numpy as np
@@ -159,3 +160,10 @@ def test_maps_from_a_file_and_the_map_topic_and_bad_ones_refused(planner, tmp_pa
     assert not watch.map_grid()[0].any()
     assert np.allclose(watch.path((0.0, 0.0), (-1.5, -1.5))[-1], (-1.5, -1.5))
     assert all(nodes.alive().values()), nodes.logs()
+
+    # A request make_plan cannot take: an empty plan, and the field that is wrong said.
+    for start, goal, reason in (((math.inf, 0.0), (1.0, 1.0), 'start: position.x is inf'),
+                                ((0.0, 0.0), (1.0, math.nan), 'goal: position.y is nan')):
+        request = GetPlan.Request(start=conv.pose_stamped(start), goal=conv.pose_stamped(goal))
+        assert not client.call(watch.make_plan, request).plan.poses
+        client.spin_until(lambda r=reason: watch.errors(r), 30, f'{reason} reported')
