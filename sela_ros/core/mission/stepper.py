@@ -516,8 +516,8 @@ class MissionStepper:
     def _finish(self, success, pose):
         if success:
             return self._end(True, 'succeeded', 'goal reached', pose)
-        return self._end(False, 'max_steps', f'goal not reached in {self.config.max_steps} '
-                         'steps', pose)
+        return self._end(False, 'max_steps', 'goal not reached: the mission took its '
+                         f'max_steps ({self.config.max_steps})', pose)
 
     def _end(self, success, code, reason, pose):
         """End the mission (said once, whatever ended it): the result, after its save.

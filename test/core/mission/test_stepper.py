@@ -72,6 +72,8 @@ def test_goal_reached_when_the_current_pose_is_within_eps_and_max_steps_ends_a_m
     request = d.step(d.step(request))
     assert request is None and d.state is State.DONE and d.stepper.result is False
     assert d.stepper.steps == 2
+    assert d.stepper.ended == ('max_steps', 'goal not reached: the mission took its '
+                               'max_steps (2)')
 
 
 def test_a_fall_is_a_failed_step_learnt_as_going_nowhere_and_the_robot_is_reset():
