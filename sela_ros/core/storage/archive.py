@@ -351,6 +351,14 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
     except NpzTooLarge as exc:
         raise ArchiveError(str(exc)) from None
     try:
+        with open(path, 'rb') as handle:
+            zipped = handle.read(4) == b'PK\x03\x04'
+    except OSError as exc:
+        raise ArchiveError(f'{path}: cannot read it ({exc.strerror})') from None
+    if not zipped:
+        raise ArchiveError(f'{path} is not an archive: an archive is an .npz file (a zip), '
+                           'and this file does not start as one does. ' + _REBUILD_HINT)
+    try:
         with np.load(path, allow_pickle=False) as npz:
             present = set(npz.files)
             missing = [key for key in _ARRAY_KEYS + ('metadata',) if key not in present]

@@ -102,9 +102,11 @@ def test_corrupt_bytes(tmp_path):
 
 def test_not_an_npz(tmp_path):
     path = tmp_path / 'a.npz'
-    path.write_text('hello')
-    with pytest.raises(ArchiveError, match='truncated or corrupt'):
-        load_archive(path)
+    for content in (b'hello', b'', b'\x93NUMPY\x01\x00'):  # text, empty, a bare .npy
+        path.write_bytes(content)
+        with pytest.raises(ArchiveError, match='is not an archive: an archive is an .npz '
+                           'file.*sela-build-archive'):
+            load_archive(path)
 
 
 def test_missing_key(tmp_path):
