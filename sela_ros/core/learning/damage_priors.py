@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sela_ros.core.storage import NpzTooLarge, atomic_write, check_npz_size
+from sela_ros.core.storage import NpzRefused, atomic_write, check_npz_size
 from sela_ros.core.validation import ImplausibleOutcome, check_generic_rewards
 
 #: Scale of a table's prediction error for a gait chained from the last one (x, y in metres,
@@ -252,7 +252,7 @@ def load_damage_priors(path, params=None) -> DamagePriors:
         raise DamagePriorError(f'damage priors {path}: no such file')
     try:
         check_npz_size(path)
-    except NpzTooLarge as exc:
+    except NpzRefused as exc:
         raise DamagePriorError(f'damage priors {exc}') from None
     try:
         with np.load(path, allow_pickle=False) as npz:

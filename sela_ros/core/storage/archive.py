@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from sela_ros.core.storage.npz_files import NpzTooLarge, check_npz_size
+from sela_ros.core.storage.npz_files import NotAnNpz, NpzTooLarge, check_npz_size
 from sela_ros.core.storage.persistence import atomic_write
 from sela_ros.core.validation import ImplausibleOutcome, check_generic_rewards
 
@@ -348,16 +348,10 @@ def load_archive(path: str | os.PathLike, expected_settings: dict | None = None)
         raise ArchiveError(f'no archive file at {path}. ' + _REBUILD_HINT)
     try:
         check_npz_size(path)
+    except NotAnNpz as exc:
+        raise ArchiveError(f'{exc}. ' + _REBUILD_HINT) from None
     except NpzTooLarge as exc:
         raise ArchiveError(str(exc)) from None
-    try:
-        with open(path, 'rb') as handle:
-            zipped = handle.read(4) == b'PK\x03\x04'
-    except OSError as exc:
-        raise ArchiveError(f'{path}: cannot read it ({exc.strerror})') from None
-    if not zipped:
-        raise ArchiveError(f'{path} is not an archive: an archive is an .npz file (a zip), '
-                           'and this file does not start as one does. ' + _REBUILD_HINT)
     try:
         with np.load(path, allow_pickle=False) as npz:
             present = set(npz.files)

@@ -12,14 +12,35 @@ import zipfile
 MAX_NPZ_BYTES = 512 * 2 ** 20
 
 
-class NpzTooLarge(ValueError):
+#: How every zip file, and so every ``.npz``, starts.
+ZIP_MAGIC = b'PK\x03\x04'
+
+
+class NpzRefused(ValueError):
+    """A file refused before anything in it is read (its message starts with its path)."""
+
+
+class NpzTooLarge(NpzRefused):
     """An ``.npz`` that would inflate beyond the limit: refused before it is read."""
+
+
+class NotAnNpz(NpzRefused):
+    """A file that is no zip at all (text, an ``.npy``, empty): no ``.npz``. Left alone,
+    ``numpy.load`` would take it for a pickle and advise loading it unsafely."""
 
 
 def check_npz_size(path, max_bytes=MAX_NPZ_BYTES):
     """Raise :class:`NpzTooLarge` if the members of the ``.npz`` at ``path`` add up to more
-    than ``max_bytes`` once inflated; returns that total. A file that is not a zip (an
-    ``.npy``, a corrupt file) is left to ``numpy.load`` to refuse."""
+    than ``max_bytes`` once inflated, :class:`NotAnNpz` if it does not start as a zip does;
+    returns that total. A corrupt zip, or a file that cannot be read, is left to
+    ``numpy.load`` to refuse."""
+    try:
+        with open(path, 'rb') as handle:
+            head = handle.read(len(ZIP_MAGIC))
+    except OSError:
+        return None
+    if head != ZIP_MAGIC:
+        raise NotAnNpz(f'{path} is not an .npz file: it does not start as a zip does')
     try:
         with zipfile.ZipFile(path) as npz:
             total = sum(max(0, info.file_size) for info in npz.infolist())

@@ -242,6 +242,10 @@ def test_files_round_trip_and_bad_files_are_named(tmp_path):
     bad.write_bytes(path.read_bytes()[:1000])
     with pytest.raises(DamagePriorError, match='unreadable'):
         load_damage_priors(bad)
+    bad.write_text('names, tables')
+    with pytest.raises(DamagePriorError, match='bad.npz is not an .npz file') as refused:
+        load_damage_priors(bad)
+    assert 'pickle' not in str(refused.value)
     with pytest.raises(DamagePriorError, match='do not match'):
         DamagePriors(('a',), np.zeros((2, M, 3)), np.zeros((2, M), bool), 'x')
     with pytest.raises(DamagePriorError, match='NaN'):

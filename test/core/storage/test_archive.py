@@ -104,8 +104,8 @@ def test_not_an_npz(tmp_path):
     path = tmp_path / 'a.npz'
     for content in (b'hello', b'', b'\x93NUMPY\x01\x00'):  # text, empty, a bare .npy
         path.write_bytes(content)
-        with pytest.raises(ArchiveError, match='is not an archive: an archive is an .npz '
-                           'file.*sela-build-archive'):
+        with pytest.raises(ArchiveError, match='is not an .npz file: it does not start as a '
+                           'zip does.*sela-build-archive'):
             load_archive(path)
 
 
