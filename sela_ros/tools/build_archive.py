@@ -35,6 +35,7 @@ import math
 import os
 import signal
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -153,6 +154,23 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
     args.resume = args.resume or args.export
     if args.out.suffix != '.npz':
         parser.error(f'--out must end in .npz, got {args.out}')
+    # The map, its checkpoint and its journal are written there: said now, not after the
+    # first batch of evaluations.
+    for option, path in (('--out', args.out), ('--checkpoint', _checkpoint_path(args))):
+        problem = _unwritable(path.parent)
+        if problem:
+            parser.error(f'{option}: cannot write in {path.parent}: {problem}')
+
+
+def _unwritable(folder: Path) -> str | None:
+    """Why nothing can be written in ``folder`` (created if missing), or None."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None
 
 
 def _is_cvt(args: argparse.Namespace) -> bool:

@@ -239,6 +239,21 @@ def test_cli_usage_errors(tmp_path):
         assert 'usage: sela-build-archive' in proc.stderr
 
 
+def test_cli_refuses_an_out_it_cannot_write_before_any_evaluation(tmp_path):
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    for args, reason in ((['--out', str(blocker / 'map.npz')], f'--out: cannot write in {blocker}'),
+                         (['--out', str(tmp_path / 'map.npz'), '--checkpoint',
+                           str(blocker / 'map.pkl')], f'--checkpoint: cannot write in {blocker}')):
+        proc = subprocess.run([sys.executable, '-m', 'sela_ros.tools.build_archive', '--synthetic',
+                               '--evaluations', '10', *args], cwd=REPO, capture_output=True,
+                              text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(REPO)))
+        assert proc.returncode == 2, (args, proc.stderr)
+        assert reason in proc.stderr and 'Traceback' not in proc.stderr, proc.stderr
+        assert 'evaluations' not in proc.stdout  # refused before the build started
+    assert not (tmp_path / 'map.npz').exists()
+
+
 def test_cli_writes_archive_and_figure(tmp_path):
     from sela_ros.tools.build_archive import main
 
