@@ -242,7 +242,8 @@ def test_cli_usage_errors(tmp_path):
 def test_cli_refuses_an_out_it_cannot_write_before_any_evaluation(tmp_path):
     blocker = tmp_path / 'a_file'
     blocker.write_text('')
-    for args, reason in ((['--out', str(blocker / 'map.npz')], f'--out: cannot write in {blocker}'),
+    for args, reason in ((['--out', str(blocker / 'map.npz')],
+                          f'--out: cannot write in {blocker}'),
                          (['--out', str(tmp_path / 'map.npz'), '--checkpoint',
                            str(blocker / 'map.pkl')], f'--checkpoint: cannot write in {blocker}')):
         proc = subprocess.run([sys.executable, '-m', 'sela_ros.tools.build_archive', '--synthetic',
