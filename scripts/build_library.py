@@ -246,6 +246,8 @@ def known_outcomes(archive, spec, out=None, gaits=DEFAULT_GAITS, shipped=None,
 
     m = len(archive)
     canonical = parse_damage(spec).canonical()
+    # The second tier ships the library's own tables, partly inferred: no whole table.
+    shipped = shipped.first_tier() if shipped is not None else None
     names = [parse_damage(n).canonical() for n in shipped.names] if shipped is not None else []
     if canonical in names:
         i = names.index(canonical)
@@ -328,6 +330,58 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
               + ', '.join(f'{n} {kind}' for kind, n in kinds.items()) + ')')
 
 
+def write_second_tier(path, archive, shipped, specs, library_path):
+    """Write the map's damage priors (beside it) as its first tier (the whole tables that
+    ship) followed by the library's tables of ``specs`` ('remove-pairs': those of the 15
+    pairs of legs removed that the first tier does not hold; or ';'-separated conditions),
+    flagged as the second tier (``DamagePriors.reproduce_only``)."""
+    from sela_ros.core.learning import DamagePriors, priors_path
+    from sela_ros.core.learning.damage_priors import load_damage_priors
+    from sim_bridge.damage import parse_damage
+
+    if shipped is None:
+        raise SystemExit(f'build_library.py: no damage priors beside {path} to add to '
+                         '(make priors)')
+    library = load_damage_priors(library_path, archive.params)
+    first = shipped.first_tier()
+    if specs == 'remove-pairs':  # a pair with a whole table in the first tier stays there
+        wanted = [n for n in conditions() if n.startswith('remove:') and ',' in n
+                  and n not in first.names]
+    else:
+        wanted = [w.strip() for w in specs.split(';') if w.strip()]
+    canonical = [parse_damage(n).canonical() for n in library.names]
+    rows = []
+    for spec in wanted:
+        key = parse_damage(spec).canonical()
+        if key not in canonical:
+            raise SystemExit(f'build_library.py: {spec} is no table of {library_path}')
+        if spec in first.names:
+            raise SystemExit(f'build_library.py: {spec} is already a whole table of the '
+                             'first tier')
+        rows.append(canonical.index(key))
+    rows = np.array(rows, dtype=int)
+
+    def chained(first_rows, library_rows):
+        if first_rows is None and library_rows is None:
+            return None
+        a = np.zeros(first.fallen.shape, int) if first_rows is None else first_rows
+        b = np.zeros((len(rows), len(archive)), int) if library_rows is None \
+            else np.asarray(library_rows)[rows]
+        return np.concatenate([a, b])
+    k = first.generic_reward.shape[2]
+    priors = DamagePriors(
+        tuple(first.names) + tuple(library.names[i] for i in rows),
+        np.concatenate([first.generic_reward, library.generic_reward[rows][:, :, :k]]),
+        np.concatenate([first.fallen, library.fallen[rows]]), first.archive_checksum,
+        chained(first.chained_runs, library.chained_runs),
+        chained(first.chained_falls, library.chained_falls),
+        np.array([False] * len(first) + [True] * len(rows)))
+    out = priors_path(path)
+    priors.save(out)
+    print(f'{out}: {len(first)} whole tables, then {len(rows)} of the library as the second '
+          f'tier ({", ".join(priors.names[len(first):])})')
+
+
 def main(argv=None):
     from sela_ros.core.learning import priors_path, resolve_priors
     from sela_ros.core.storage import load_archive, resolve_archive_path
@@ -366,6 +420,11 @@ def main(argv=None):
                              'the error on the others')
     parser.add_argument('--partial', action='store_true',
                         help='assemble what is evaluated so far (conditions listed)')
+    parser.add_argument('--second-tier', default=None, metavar='SPECS',
+                        help="add these tables of the assembled library (--library) to the "
+                             "map's damage priors as a second tier, used only once one of "
+                             "them reproduced the robot's standing starts: 'remove-pairs' "
+                             "(the 15 pairs of legs removed) or ';'-separated conditions")
     args = parser.parse_args(argv)
     path = resolve_archive_path(args.archive)
     archive = load_archive(path)
@@ -377,6 +436,12 @@ def main(argv=None):
               covering=args.covering)
         return
     shipped = resolve_priors('auto', path, archive.params)
+    if args.second_tier:
+        write_second_tier(path, archive, shipped, args.second_tier,
+                          args.library or priors_path(path, library=True))
+        return
+    # Whole tables ship as the first tier; the second is the library's own.
+    shipped = shipped.first_tier() if shipped is not None else None
     skip = tuple(shipped.names) if shipped is not None else ()
     names, evaluations, hours, megabytes = plan(len(archive), args.gaits, skip)
     print(f'{len(names)} conditions ({len(names) - len(set(skip) & set(names))} to build, the '

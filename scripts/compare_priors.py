@@ -274,6 +274,21 @@ def leave_out(priors, damage):
     return priors, names
 
 
+@functools.lru_cache(maxsize=1)
+def second_tier_cases():
+    """The damages of the shipped priors' second tier (two legs lost), each measured with
+    the priors as they ship: ``(damage, damage, False)``."""
+    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.storage import default_archive_path, load_archive
+
+    shipped = resolve_priors('auto', default_archive_path(),
+                             load_archive(default_archive_path()).params)
+    if shipped is None:
+        return ()
+    return tuple((n, n, False) for n, second in zip(shipped.names, shipped.second_tier)
+                 if second)
+
+
 def library_priors(whole, cases, scratch):
     """``{case label: (path of its priors file, names left out)}``: a foreseen case keeps
     the whole library; every other one is measured as if no condition of the library were
@@ -643,9 +658,10 @@ def table(rows):
 
 
 def is_foreseen(case, method):
-    """Whether ``method`` ran ``case`` with a table of that damage: a foreseen case, or a
-    condition of the library run with the whole library (:data:`OWN_LIBRARY_METHODS`)."""
-    return case in {c[0] for c in FORESEEN} or method == 'bound-own' or (
+    """Whether ``method`` ran ``case`` with a table of that damage: a foreseen case (the
+    shipped priors' second tier included), or a condition of the library run with the whole
+    library (:data:`OWN_LIBRARY_METHODS`)."""
+    return case in {c[0] for c in FORESEEN + second_tier_cases()} or method == 'bound-own' or (
         method in OWN_LIBRARY_METHODS and case.endswith('/own-left-out'))
 
 
@@ -728,8 +744,9 @@ def main(argv=None):
                         help="'all', 'unforeseen', 'foreseen', 'deviations', 'library' (every "
                              "condition of "
                              "--library, or of the library's plan, as a damage nobody "
-                             "foresaw, then the unforeseen cases it does not hold) or case "
-                             'names joined by ";"')
+                             "foresaw, then the unforeseen cases it does not hold), "
+                             "'second-tier' (the damages of the shipped priors' second "
+                             'tier, their tables in) or case names joined by ";"')
     parser.add_argument('--goals', default=None,
                         help='goals X,Y separated by spaces (default: (2,2) (-2,1.5) '
                              '(1.5,-2) (2.5,0.5))')
@@ -767,9 +784,12 @@ def main(argv=None):
         cases = DEVIATIONS
     elif args.cases in ('unforeseen', 'foreseen'):
         cases = UNFORESEEN if args.cases == 'unforeseen' else FORESEEN
+    elif args.cases == 'second-tier':
+        cases = second_tier_cases()
     else:
         wanted = args.cases.split(';')
-        known = UNFORESEEN + FORESEEN + DEVIATIONS + library_cases(args.library)
+        known = UNFORESEEN + FORESEEN + DEVIATIONS + library_cases(args.library) \
+            + second_tier_cases()
         by_label = {}
         for c in known:
             by_label.setdefault(c[0], c)

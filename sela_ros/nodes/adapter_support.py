@@ -23,7 +23,11 @@ def load_priors(setting, archive, path, logger):
         logger.error(f'{exc}; adapting from the intact map alone')
         return None
     if priors is not None:
-        logger.info(f'damage priors: {len(priors)} foreseen damages ({", ".join(priors.names)})')
+        first = priors.first_tier()
+        second = priors.names[len(first):]
+        logger.info(f'damage priors: {len(first)} foreseen damages ({", ".join(first.names)})'
+                    + (f'; {len(second)} more, each used once it reproduces the robot\'s '
+                       f'standing starts ({", ".join(second)})' if second else ''))
     return priors
 
 

@@ -193,3 +193,43 @@ def test_a_damage_outside_the_library_is_evaluated_for_its_oracle(lib, tmp_path,
     assert int(np.argmax(speed)) in chosen
     assert np.abs(gr[chosen]).sum() > 0 and not np.abs(gr[~known]).any()
     assert lib.build(archive, tmp_path, 3, 2, 1, specs=['friction:0.3'], covering=2) == 0
+
+
+def test_the_second_tier_adds_library_tables_after_the_whole_ones(lib, tmp_path):
+    """``--second-tier``: the shipped whole tables first, then the library's tables named,
+    flagged; a second-tier table is no whole table for an oracle (the library infers most
+    of it), and a damage the library lacks or the first tier holds is refused."""
+    from sela_ros.core.learning import DamagePriors, params_checksum, priors_path
+    from sela_ros.core.learning.damage_priors import load_damage_priors
+
+    archive = _Map(np.random.default_rng(5))
+    m = len(archive)
+    checksum = params_checksum(archive.params)
+    whole = archive.generic_reward * 0.5
+    runs = np.zeros((1, m), int)
+    runs[0, 9] = 3
+    shipped = DamagePriors(('remove:front_left',), whole[None], np.zeros((1, m), bool),
+                           checksum, runs, np.zeros((1, m), int))
+    pair = 'remove:front_left,remove:rear_right'
+    library = DamagePriors(('remove:front_left', pair, 'block:rear_left.knee=0.4'),
+                           np.stack([whole, whole * 0.5, whole * 2]), np.zeros((3, m), bool),
+                           checksum)
+    library.save(tmp_path / 'library.npz')
+    map_path = tmp_path / 'map.npz'
+    lib.write_second_tier(map_path, archive, shipped, pair, tmp_path / 'library.npz')
+    written = load_damage_priors(priors_path(map_path), archive.params)
+    assert written.names == ('remove:front_left', pair)
+    assert written.second_tier.tolist() == [False, True]
+    np.testing.assert_allclose(written.generic_reward[1], whole * 0.5, atol=1e-6)
+    assert written.chained(0)[0].tolist() == [9] and not written.chained(1)[0].size
+    # Written again over itself: the second tier is replaced, not stacked.
+    lib.write_second_tier(map_path, archive, written, pair, tmp_path / 'library.npz')
+    assert load_damage_priors(priors_path(map_path)).names == written.names
+    assert lib.known_outcomes(archive, pair, tmp_path, 100, written,
+                              tmp_path / 'oracle') is None
+    with pytest.raises(SystemExit, match='remove:middle_left,remove:rear_right is no table'):
+        lib.write_second_tier(map_path, archive, shipped, 'remove:middle_left,remove:rear_right',
+                              tmp_path / 'library.npz')
+    with pytest.raises(SystemExit, match='already a whole table'):
+        lib.write_second_tier(map_path, archive, shipped, 'remove:front_left',
+                              tmp_path / 'library.npz')

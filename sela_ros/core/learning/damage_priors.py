@@ -105,6 +105,9 @@ class DamagePriors:
         chained_runs, chained_falls: ``(K, M)`` how often each gait was run right after
             another one (the fast gaits the fall model fears: ``make priors``) and how often
             it fell then; None: none was.
+        reproduce_only: ``(K,)`` the second tier: tables used only once one of them has
+            reproduced the robot's standing starts (:meth:`first_tier`; two legs lost at
+            once), after every first-tier table; None: none is.
     """
 
     names: tuple
@@ -113,6 +116,7 @@ class DamagePriors:
     archive_checksum: str
     chained_runs: np.ndarray | None = None
     chained_falls: np.ndarray | None = None
+    reproduce_only: np.ndarray | None = None
 
     def __post_init__(self):
         gr, fallen = np.asarray(self.generic_reward), np.asarray(self.fallen)
@@ -139,9 +143,41 @@ class DamagePriors:
             raise DamagePriorError(str(exc)) from None
         if len(set(self.names)) != k:
             raise DamagePriorError(f'damage priors: names repeat: {list(self.names)}')
+        second = np.zeros(k, bool) if self.reproduce_only is None \
+            else np.asarray(self.reproduce_only)
+        if second.shape != (k,) or second.dtype != bool:
+            raise DamagePriorError(f'damage priors: reproduce_only must be {k} flags, got '
+                                   f'{second.shape} {second.dtype}')
+        # The first tier is a prefix: a table's index is the same in it and in the whole.
+        if np.any(np.diff(second.astype(int)) < 0):
+            raise DamagePriorError('damage priors: the reproduce-only tables must come after '
+                                   f'the others: {list(self.names)}')
+        object.__setattr__(self, '_second', second)
+        object.__setattr__(self, '_first_tier', None)
 
     def __len__(self):
         return len(self.names)
+
+    @property
+    def second_tier(self) -> np.ndarray:
+        """``(K,)`` which tables are used only once one of them reproduced the robot's
+        standing starts."""
+        return self._second
+
+    def first_tier(self) -> DamagePriors:
+        """The tables used until a second-tier table has reproduced the robot's standing
+        starts (itself when there is no second tier): the first ``K1`` tables, with the
+        same indices."""
+        if not self._second.any():
+            return self
+        if self._first_tier is None:
+            keep = int(np.sum(~self._second))
+            chained = [None if a is None else np.asarray(a)[:keep]
+                       for a in (self.chained_runs, self.chained_falls)]
+            object.__setattr__(self, '_first_tier', DamagePriors(
+                tuple(self.names[:keep]), self.generic_reward[:keep], self.fallen[:keep],
+                self.archive_checksum, *chained))
+        return self._first_tier
 
     def chained(self, index: int):
         """``(gaits, runs, falls)`` of table ``index``'s chained runs (empty: none)."""
@@ -157,7 +193,8 @@ class DamagePriors:
         chained = [None if a is None else np.asarray(a)[keep]
                    for a in (self.chained_runs, self.chained_falls)]
         return DamagePriors(tuple(self.names[i] for i in keep), self.generic_reward[keep],
-                            self.fallen[keep], self.archive_checksum, *chained)
+                            self.fallen[keep], self.archive_checksum, *chained,
+                            self._second[keep])
 
     def check_archive(self, params) -> None:
         """Raise :class:`DamagePriorError` unless the tables are for these gaits."""
@@ -241,7 +278,7 @@ class DamagePriors:
             handle, names=np.array(self.names),
             generic_reward=self.generic_reward.astype(np.float32),
             fallen=self.fallen.astype(bool), archive_checksum=np.array(self.archive_checksum),
-            format_version=np.array(FORMAT_VERSION), **chained))
+            format_version=np.array(FORMAT_VERSION), reproduce_only=self._second, **chained))
 
 
 def load_damage_priors(path, params=None) -> DamagePriors:
@@ -263,10 +300,11 @@ def load_damage_priors(path, params=None) -> DamagePriors:
             # Chained runs are optional (files from before them have none).
             chained = [npz[key].astype(int) if key in npz.files else None
                        for key in ('chained_runs', 'chained_falls')]
+            second = npz['reproduce_only'] if 'reproduce_only' in npz.files else None
             priors = DamagePriors(tuple(str(n) for n in npz['names']),
                                   npz['generic_reward'].astype(float),
                                   npz['fallen'].astype(bool), str(npz['archive_checksum']),
-                                  *chained)
+                                  *chained, second)
     except DamagePriorError:
         raise
     except Exception as exc:  # truncated, not an npz, missing arrays

@@ -26,6 +26,12 @@ from sela_ros.core.learning.sela_config import SELAConfig
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 
 
+#: Steps seen before a second-tier table of the damage priors may be used: the first step of
+#: a mission is hedged (a cautious gait that many damages move alike), so one step that a
+#: second-tier table reproduced is not enough (docs/learning_the_damage.md, "Two legs lost").
+SECOND_TIER_MIN_STEPS = 2
+
+
 def observed_generic_reward(pose_before, pose_after, motion) -> np.ndarray:
     """``afun`` of the paper: the generic reward observed between two poses."""
     return motion.generic_reward(pose_before, pose_after)
@@ -169,6 +175,35 @@ class SELA:
         self._priors = priors
         self._support = {}  # the fall model's prior per table (FallRisk.table_support)
         self._mixture_fit = None  # fitted to other tables
+        self._tier = (None, priors if priors is None else priors.first_tier())
+
+    def _tables(self):
+        """The damage priors in use (None: none): the first tier
+        (:meth:`DamagePriors.first_tier`) until a second-tier table is the one that best
+        explains the steps and has reproduced the robot's standing starts, then all of
+        them. The second tier (two legs lost at once) is never mixed nor hedged over: on
+        a damage it does not hold it would only add ways to fit the steps by chance
+        (docs/learning_the_damage.md, "Two legs lost: a second tier of tables")."""
+        priors = self._priors
+        if priors is None or not priors.second_tier.any():
+            return priors
+        fall_idx, fallen = self._fall.observations
+        idx, grs = self.observations
+        key = (idx.tobytes(), grs.tobytes(), fall_idx.tobytes(), fallen.tobytes(),
+               tuple(self._standing))
+        if self._tier[0] != key:
+            use = priors.first_tier()
+            if self._gp.num_samples >= SECOND_TIER_MIN_STEPS:
+                selection = priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                          self.config.priors_max_misfit, self._standing,
+                                          self.config.priors_max_misfit_reproduced)
+                if selection.index is not None and selection.reproduced \
+                        and priors.second_tier[selection.index]:
+                    use = priors
+            if use is not self._tier[1]:
+                self._mixture_fit = None
+            self._tier = (key, use)
+        return self._tier[1]
 
     @property
     def num_candidates(self) -> int:
@@ -299,11 +334,11 @@ class SELA:
         (:func:`~sela_ros.core.learning.prior_mixture.fit_mixture`); with
         ``priors.weights.sd`` none, the selected table or the intact map whatever it
         reproduced."""
-        if self.priors is None or not self._gp.num_samples:
+        if self._tables() is None or not self._gp.num_samples:
             return damage_priors.INTACT
         fall_idx, fallen = self._fall.observations
         idx, grs = self.observations
-        selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+        selection = self._tables().select(self._prior, idx, grs, fall_idx, fallen,
                                        self.config.priors_max_misfit, self._standing,
                                        self.config.priors_max_misfit_reproduced)
         # With no step from a standing start there is nothing a table could reproduce: a
@@ -324,7 +359,7 @@ class SELA:
                tuple(self._standing), self.config.priors_weights_sd)
         if self._mixture_fit is None or self._mixture_fit[0] != key:
             self._mixture_fit = (key, prior_mixture.fit_mixture(
-                self._prior, self.priors.generic_reward, idx, grs, fall_idx, fallen,
+                self._prior, self._tables().generic_reward, idx, grs, fall_idx, fallen,
                 self._standing, weight_sd=self.config.priors_weights_sd))
         return self._mixture_fit[1]
 
@@ -341,15 +376,15 @@ class SELA:
             return  # the tumble's displacement tests neither
         idx, grs = self.observations
         k = self.motion.gr_dim
-        selection = self.priors.select(self._prior, idx, grs, fall_idx, fallen,
+        selection = self._tables().select(self._prior, idx, grs, fall_idx, fallen,
                                        self.config.priors_max_misfit, self._standing,
                                        self.config.priors_max_misfit_reproduced)
         rows = np.append(idx, index)
         one = (self._prior if selection.index is None
-               else self.priors.generic_reward[selection.index])[rows, :k]
+               else self._tables().generic_reward[selection.index])[rows, :k]
         weights = self._mixture(idx, grs, fall_idx, fallen).weights
         base = self._prior[rows]
-        mixed = base + np.tensordot(weights, self.priors.generic_reward[:, rows, :k] - base,
+        mixed = base + np.tensordot(weights, self._tables().generic_reward[:, rows, :k] - base,
                                     axes=1)
         for key, prior in (('table', one), ('mixture', mixed)):
             predicted = self._gp.mean_at_with_prior(index, prior[:-1], prior[-1])
@@ -370,17 +405,17 @@ class SELA:
         if selection.mixture is not None:
             # The mixture's falls set the fall model's prior as a table's do; no chained runs:
             # those of the damages mixed mislead on another robot (docs/notebook.md).
-            rates = selection.mixture.fall_rates(self.priors.fallen)
+            rates = selection.mixture.fall_rates(self._tables().fallen)
             return (self._gp.mean_columns_with_prior(prior), var,
                     (rates, self._fall.table_support(rates), None))
         if selection.index is None:
             return (mu_t if prior is None else self._gp.mean_columns_with_prior(prior)), var, ()
-        fallen = self.priors.fallen[selection.index]
+        fallen = self._tables().fallen[selection.index]
         if selection.index not in self._support:
             self._support[selection.index] = self._fall.table_support(fallen)
         return (self._gp.mean_columns_with_prior(prior), var,
                 (fallen.astype(float), self._support[selection.index],
-                 self.priors.chained(selection.index) if selection.reproduced else None))
+                 self._tables().chained(selection.index) if selection.reproduced else None))
 
     def _choice_variance(self):
         """``(M,)`` the posterior variance the choice reads, on the configured kernel's
@@ -466,10 +501,10 @@ class SELA:
         """The ``(M, k)`` prior mean ``selection`` stands for: the tables mixed, one table,
         or None for the intact map (the GPs' own)."""
         if selection.mixture is not None:
-            return selection.mixture.mean(self._prior, self.priors.generic_reward)
+            return selection.mixture.mean(self._prior, self._tables().generic_reward)
         if selection.index is None:
             return None
-        return self.priors.generic_reward[selection.index][:, :self.motion.gr_dim]
+        return self._tables().generic_reward[selection.index][:, :self.motion.gr_dim]
 
     def predict(self):
         """Posterior over the archive: ``(mu (M, k), sigma (M,))`` (under the prior in use)."""
@@ -503,7 +538,7 @@ class SELA:
             waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
             if self.config.planner_horizon > 1:
                 second = next_waypoint(path, pose[:2], 2 * self.config.planner_lookahead)
-        if self.priors is not None and len(self.priors) and not self._gp.num_samples \
+        if self._tables() is not None and len(self._tables()) and not self._gp.num_samples \
                 and not map_trusted:
             return self._hedged_choice(pose, waypoint, path)
         selection = self.select_prior()
@@ -570,7 +605,7 @@ class SELA:
         "The first step and the fall model on a known damage")."""
         c = self.config
         k = self.motion.gr_dim
-        tables = [self._prior] + [g[:, :k] for g in self.priors.generic_reward]
+        tables = [self._prior] + [g[:, :k] for g in self._tables().generic_reward]
         distance, x, y = (np.zeros(self.num_candidates) for _ in range(3))
         for table in tables:
             tx, ty = self.motion.predict_xy_columns(pose, table.T)
@@ -578,7 +613,7 @@ class SELA:
             x += tx
             y += ty
         distance, x, y = distance / len(tables), x / len(tables), y / len(tables)
-        falls = self.priors.fallen.sum(axis=0) / len(tables)
+        falls = self._tables().fallen.sum(axis=0) / len(tables)
         risk = np.maximum(self._fall.risk(), falls)
         scores = fall_risk.safe_choice(-distance - c.fall_risk_cost * risk, risk,
                                        c.fall_risk_threshold)
@@ -712,10 +747,10 @@ class SELA:
             and isinstance(index, (int, np.integer)) and 0 <= index < self.num_candidates
         # (The first step of an adaptation with damage priors is hedged over them all: no
         # one prior predicted it.)
-        hedged = self.priors is not None and len(self.priors) and not self._gp.num_samples
+        hedged = self._tables() is not None and len(self._tables()) and not self._gp.num_samples
         if valid and not hedged and self.config.acquisition_caution is not None:
             self._note_surprise(int(index), observed)
-        if self.priors is not None and len(self.priors) and self._gp.num_samples \
+        if self._tables() is not None and len(self._tables()) and self._gp.num_samples \
                 and self.config.priors_weights_sd is not None and valid:
             self._score_priors(int(index), observed, bool(standing_start))
         if valid and not hedged and self.config.gp_mean_affine is not None:

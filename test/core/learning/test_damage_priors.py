@@ -367,3 +367,75 @@ def test_cells_without_sela_do_not_care_about_sela_only_parameters(tmp_path):
     error = campaign('ite_uncertainty,sela', status=2)  # SELA would run with the tables
     assert "damage priors None (asked ['remove:front_left'])" in error
     campaign('ite_uncertainty,sela', '--priors', 'none')
+
+
+def tiered(priors, second):
+    """``priors`` with a third table, ``second`` (M, 3), as the second tier."""
+    return DamagePriors((*priors.names, 'remove:front_left,remove:rear_left'),
+                        np.concatenate([priors.generic_reward, second[None]]),
+                        np.concatenate([priors.fallen, np.zeros((1, M), bool)]),
+                        priors.archive_checksum, None, None, np.array([False, False, True]))
+
+
+def test_a_second_tier_round_trips_and_its_tables_come_last(tmp_path):
+    _, intact, priors, _ = world()
+    both = tiered(priors, intact * 0.2)
+    assert list(both.second_tier) == [False, False, True]
+    assert both.first_tier().names == priors.names
+    assert np.array_equal(both.first_tier().generic_reward, priors.generic_reward)
+    assert priors.first_tier() is priors and not priors.second_tier.any()
+    path = tmp_path / 'p.npz'
+    both.save(path)
+    again = load_damage_priors(path)
+    assert list(again.second_tier) == [False, False, True]
+    assert list(again.without('remove:front_left').second_tier) == [False, True]
+    priors.save(path)  # a file without the field: no second tier
+    assert not load_damage_priors(path).second_tier.any()
+    with pytest.raises(DamagePriorError, match='reproduce-only tables must come after'):
+        DamagePriors(both.names, both.generic_reward, both.fallen, both.archive_checksum,
+                     None, None, np.array([True, False, False]))
+    with pytest.raises(DamagePriorError, match='reproduce_only must be 3 flags'):
+        DamagePriors(both.names, both.generic_reward, both.fallen, both.archive_checksum,
+                     None, None, np.array([0, 0, 1]))
+
+
+def test_the_second_tier_is_used_only_once_it_reproduced_the_standing_starts():
+    """Two legs lost: the second tier's table is neither hedged over on the first step nor
+    mixed; it is the prior once it has reproduced the robot's standing start, and not on a
+    robot it does not reproduce, where the choice is the first tier's alone."""
+    candidates, intact, priors, _ = world()
+    pair = intact * [0.15, 0.15, 0.15]
+    both = tiered(priors, pair)
+    config = SELAConfig(gp_kernel_sigma=0.3, acquisition_ucb_alpha=0.0, fall_risk_cost=0.0)
+    waypoint = np.array([0.6, 0.0])
+    first = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config,
+                 priors=priors)
+    sela = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config, priors=both)
+    hedged = sela.ask(np.zeros(3), waypoint=waypoint)
+    assert hedged.prior == HEDGED
+    assert hedged.index == first.ask(np.zeros(3), waypoint=waypoint).index
+    # On the robot the second tier holds: one step it reproduced from a standing start is
+    # not enough (the hedged first gait is a cautious one that many damages move alike);
+    # from the second step on its table is the prior.
+    sela.tell_fall(hedged.index, False)
+    sela.tell(hedged.index, pair[hedged.index], standing_start=True)
+    second = sela.ask(np.zeros(3), waypoint=waypoint)
+    assert second.prior != 'remove:front_left,remove:rear_left'
+    sela.tell_fall(second.index, False)
+    sela.tell(second.index, pair[second.index])
+    decision = sela.ask(np.zeros(3), waypoint=waypoint)
+    assert decision.prior == 'remove:front_left,remove:rear_left'
+    assert np.allclose(sela.predict()[0][decision.index], pair[decision.index], atol=0.05)
+    # On the first damage's robot the second tier is never used: every choice is the one
+    # the first tier alone makes.
+    true = priors.generic_reward[0]
+    sela = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config, priors=both)
+    first = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config,
+                 priors=priors)
+    for step in range(4):
+        picks = [model.ask(np.zeros(3), waypoint=waypoint) for model in (sela, first)]
+        assert picks[0].index == picks[1].index and picks[0].prior == picks[1].prior
+        for model in (sela, first):
+            model.tell_fall(picks[0].index, False)
+            model.tell(picks[0].index, true[picks[0].index], standing_start=step == 0)
+    assert picks[0].prior == 'remove:front_left'
