@@ -25,7 +25,6 @@ from sela_ros.core.learning import (
 from sela_ros.core.learning.sela_config import SELAConfig
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 
-
 #: Steps seen before a second-tier table of the damage priors may be used: the first step of
 #: a mission is hedged (a cautious gait that many damages move alike), so one step that a
 #: second-tier table reproduced is not enough (docs/learning_the_damage.md, "Two legs lost").
@@ -175,7 +174,7 @@ class SELA:
         self._priors = priors
         self._support = {}  # the fall model's prior per table (FallRisk.table_support)
         self._mixture_fit = None  # fitted to other tables
-        self._tier = (None, priors if priors is None else priors.first_tier())
+        self._tier = (None, None)  # (the steps it was chosen on, the tables in use)
 
     def _tables(self):
         """The damage priors in use (None: none): the first tier
@@ -334,13 +333,14 @@ class SELA:
         (:func:`~sela_ros.core.learning.prior_mixture.fit_mixture`); with
         ``priors.weights.sd`` none, the selected table or the intact map whatever it
         reproduced."""
-        if self._tables() is None or not self._gp.num_samples:
+        tables = self._tables()
+        if tables is None or not self._gp.num_samples:
             return damage_priors.INTACT
         fall_idx, fallen = self._fall.observations
         idx, grs = self.observations
-        selection = self._tables().select(self._prior, idx, grs, fall_idx, fallen,
-                                       self.config.priors_max_misfit, self._standing,
-                                       self.config.priors_max_misfit_reproduced)
+        selection = tables.select(self._prior, idx, grs, fall_idx, fallen,
+                                  self.config.priors_max_misfit, self._standing,
+                                  self.config.priors_max_misfit_reproduced)
         # With no step from a standing start there is nothing a table could reproduce: a
         # table that explains the steps (priors.max.misfit) is then used as it is.
         unjudged = selection.index is not None and not any(self._standing)
@@ -376,15 +376,16 @@ class SELA:
             return  # the tumble's displacement tests neither
         idx, grs = self.observations
         k = self.motion.gr_dim
-        selection = self._tables().select(self._prior, idx, grs, fall_idx, fallen,
-                                       self.config.priors_max_misfit, self._standing,
-                                       self.config.priors_max_misfit_reproduced)
+        tables = self._tables()
+        selection = tables.select(self._prior, idx, grs, fall_idx, fallen,
+                                  self.config.priors_max_misfit, self._standing,
+                                  self.config.priors_max_misfit_reproduced)
         rows = np.append(idx, index)
         one = (self._prior if selection.index is None
-               else self._tables().generic_reward[selection.index])[rows, :k]
+               else tables.generic_reward[selection.index])[rows, :k]
         weights = self._mixture(idx, grs, fall_idx, fallen).weights
         base = self._prior[rows]
-        mixed = base + np.tensordot(weights, self._tables().generic_reward[:, rows, :k] - base,
+        mixed = base + np.tensordot(weights, tables.generic_reward[:, rows, :k] - base,
                                     axes=1)
         for key, prior in (('table', one), ('mixture', mixed)):
             predicted = self._gp.mean_at_with_prior(index, prior[:-1], prior[-1])
@@ -410,12 +411,13 @@ class SELA:
                     (rates, self._fall.table_support(rates), None))
         if selection.index is None:
             return (mu_t if prior is None else self._gp.mean_columns_with_prior(prior)), var, ()
-        fallen = self._tables().fallen[selection.index]
+        tables = self._tables()
+        fallen = tables.fallen[selection.index]
         if selection.index not in self._support:
             self._support[selection.index] = self._fall.table_support(fallen)
         return (self._gp.mean_columns_with_prior(prior), var,
                 (fallen.astype(float), self._support[selection.index],
-                 self._tables().chained(selection.index) if selection.reproduced else None))
+                 tables.chained(selection.index) if selection.reproduced else None))
 
     def _choice_variance(self):
         """``(M,)`` the posterior variance the choice reads, on the configured kernel's
@@ -538,7 +540,8 @@ class SELA:
             waypoint = next_waypoint(path, pose[:2], self.config.planner_lookahead)
             if self.config.planner_horizon > 1:
                 second = next_waypoint(path, pose[:2], 2 * self.config.planner_lookahead)
-        if self._tables() is not None and len(self._tables()) and not self._gp.num_samples \
+        tables = self._tables()
+        if tables is not None and len(tables) and not self._gp.num_samples \
                 and not map_trusted:
             return self._hedged_choice(pose, waypoint, path)
         selection = self.select_prior()
@@ -605,7 +608,8 @@ class SELA:
         "The first step and the fall model on a known damage")."""
         c = self.config
         k = self.motion.gr_dim
-        tables = [self._prior] + [g[:, :k] for g in self._tables().generic_reward]
+        priors = self._tables()
+        tables = [self._prior] + [g[:, :k] for g in priors.generic_reward]
         distance, x, y = (np.zeros(self.num_candidates) for _ in range(3))
         for table in tables:
             tx, ty = self.motion.predict_xy_columns(pose, table.T)
@@ -613,7 +617,7 @@ class SELA:
             x += tx
             y += ty
         distance, x, y = distance / len(tables), x / len(tables), y / len(tables)
-        falls = self._tables().fallen.sum(axis=0) / len(tables)
+        falls = priors.fallen.sum(axis=0) / len(tables)
         risk = np.maximum(self._fall.risk(), falls)
         scores = fall_risk.safe_choice(-distance - c.fall_risk_cost * risk, risk,
                                        c.fall_risk_threshold)
@@ -745,12 +749,13 @@ class SELA:
         observed = np.asarray(observed_gr, dtype=float).reshape(-1)
         valid = observed.shape == (self.motion.gr_dim,) and np.all(np.isfinite(observed)) \
             and isinstance(index, (int, np.integer)) and 0 <= index < self.num_candidates
-        # (The first step of an adaptation with damage priors is hedged over them all: no
-        # one prior predicted it.)
-        hedged = self._tables() is not None and len(self._tables()) and not self._gp.num_samples
+        # (The first step of an adaptation with damage priors is hedged over the first tier:
+        # no one prior predicted it.)
+        tables = self._tables()
+        hedged = tables is not None and len(tables) and not self._gp.num_samples
         if valid and not hedged and self.config.acquisition_caution is not None:
             self._note_surprise(int(index), observed)
-        if self._tables() is not None and len(self._tables()) and self._gp.num_samples \
+        if tables is not None and len(tables) and self._gp.num_samples \
                 and self.config.priors_weights_sd is not None and valid:
             self._score_priors(int(index), observed, bool(standing_start))
         if valid and not hedged and self.config.gp_mean_affine is not None:
