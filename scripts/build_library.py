@@ -330,11 +330,13 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
               + ', '.join(f'{n} {kind}' for kind, n in kinds.items()) + ')')
 
 
-def write_second_tier(path, archive, shipped, specs, library_path):
+def write_second_tier(path, archive, shipped, specs, library_path, out):
     """Write the map's damage priors (beside it) as its first tier (the whole tables that
     ship) followed by the library's tables of ``specs`` ('remove-pairs': those of the 15
     pairs of legs removed that the first tier does not hold; or ';'-separated conditions),
-    flagged as the second tier (``DamagePriors.reproduce_only``)."""
+    flagged as the second tier (``DamagePriors.reproduce_only``), with the gaits each
+    simulated (the build's checkpoints in ``out``; the rest were inferred:
+    ``DamagePriors.simulated``)."""
     from sela_ros.core.learning import DamagePriors, priors_path
     from sela_ros.core.learning.damage_priors import load_damage_priors
     from sim_bridge.damage import parse_damage
@@ -360,6 +362,13 @@ def write_second_tier(path, archive, shipped, specs, library_path):
                              'first tier')
         rows.append(canonical.index(key))
     rows = np.array(rows, dtype=int)
+    simulated = np.zeros((len(rows), len(archive)), bool)
+    for row, spec in zip(simulated, wanted):
+        done = _evaluated(out, spec)[0]
+        if not len(done):
+            raise SystemExit(f'build_library.py: no gait of {spec} evaluated in {out}: which '
+                             'of its outcomes were simulated is not known')
+        row[done] = True
 
     def chained(first_rows, library_rows):
         if first_rows is None and library_rows is None:
@@ -375,11 +384,15 @@ def write_second_tier(path, archive, shipped, specs, library_path):
         np.concatenate([first.fallen, library.fallen[rows]]), first.archive_checksum,
         chained(first.chained_runs, library.chained_runs),
         chained(first.chained_falls, library.chained_falls),
-        np.array([False] * len(first) + [True] * len(rows)))
-    out = priors_path(path)
-    priors.save(out)
-    print(f'{out}: {len(first)} whole tables, then {len(rows)} of the library as the second '
-          f'tier ({", ".join(priors.names[len(first):])})')
+        np.array([False] * len(first) + [True] * len(rows)),
+        np.concatenate([np.ones(first.fallen.shape, bool) if first.simulated is None
+                        else first.simulated, simulated]))
+    target = priors_path(path)
+    priors.save(target)
+    print(f'{target}: {len(first)} whole tables, then {len(rows)} of the library as the '
+          f'second tier ({", ".join(priors.names[len(first):])}; '
+          f'{int(simulated.sum(axis=1).min())}-{int(simulated.sum(axis=1).max())} of '
+          f'{len(archive)} gaits simulated each, the rest inferred)')
 
 
 def main(argv=None):
@@ -438,7 +451,7 @@ def main(argv=None):
     shipped = resolve_priors('auto', path, archive.params)
     if args.second_tier:
         write_second_tier(path, archive, shipped, args.second_tier,
-                          args.library or priors_path(path, library=True))
+                          args.library or priors_path(path, library=True), args.out)
         return
     # Whole tables ship as the first tier; the second is the library's own.
     shipped = shipped.first_tier() if shipped is not None else None

@@ -80,8 +80,9 @@ PARAMETERS = (
          'of 0.1 m, 0.1 m, 0.25 rad); none = never (the tables serve only in the mixture)',
          low=0.0, high=1e6, word=NONE, read_only=True, renamed_from='priors.max.misfit'),
     Spec('priors.max_misfit_reproduced', 2.0, 'the same cap for a damage prior that '
-         'reproduced every step from a standing start (spawned, reset or righted); below '
-         'priors.max_misfit = no exception', low=0.0, high=1e6, read_only=True,
+         'reproduced the steps from a standing start (spawned, reset or righted: a third of '
+         'them or more); below priors.max_misfit = no exception', low=0.0, high=1e6,
+         read_only=True,
          renamed_from='priors.max.misfit.reproduced'),
     Spec('priors.weights.sd', SELAConfig.priors_weights_sd, 'while no damage prior '
          'reproduced the steps from a standing start, the prior mean is the tables mixed by '

@@ -28,6 +28,14 @@ def load_priors(setting, archive, path, logger):
         logger.info(f'damage priors: {len(first)} foreseen damages ({", ".join(first.names)})'
                     + (f'; {len(second)} more, each used once it reproduces the robot\'s '
                        f'standing starts ({", ".join(second)})' if second else ''))
+        partly = [i for i in range(len(priors)) if priors.inferred(i) is not None]
+        if partly:
+            counts = sorted({int((~priors.inferred(i)).sum()) for i in partly})
+            span = '-'.join(map(str, sorted({counts[0], counts[-1]})))
+            logger.info(f'damage priors: {len(partly)} tables partly inferred (each simulated '
+                        f'{span} of '
+                        f'{priors.num_candidates} gaits): while one is the prior, the choice '
+                        'is among the gaits it simulated and those the robot has tried')
     return priors
 
 

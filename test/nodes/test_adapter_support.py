@@ -88,3 +88,20 @@ def test_the_outcome_limit_follows_the_archive_and_a_spoofed_long_outcome_is_ref
                                        None).config.max_displacement == 3.0
     assert adapter_params.stepper_change('outcome.max_displacement', 'auto', archive) == {
         'max_displacement': 2 * fastest}
+
+
+def test_the_shipped_priors_are_logged_with_their_tiers_and_what_was_inferred():
+    from sela_ros.core.storage import load_archive
+
+    lines = []
+    logger = SimpleNamespace(info=lines.append, error=lines.append)
+    path = default_archive_path()
+    priors = adapter_support.load_priors('auto', load_archive(path), path, logger)
+    assert priors is not None and len(priors.first_tier()) == 6
+    assert '6 foreseen damages (remove:front_left' in lines[0]
+    assert '15 more, each used once it reproduces' in lines[0]
+    assert lines[1].startswith('damage priors: 15 tables partly inferred (each simulated '
+                               '4000 of 12442 gaits)')
+    lines.clear()
+    assert adapter_support.load_priors('/nowhere.npz', load_archive(path), path, logger) is None
+    assert len(lines) == 1 and 'no such file' in lines[0] and 'intact map alone' in lines[0]

@@ -197,8 +197,9 @@ def test_a_damage_outside_the_library_is_evaluated_for_its_oracle(lib, tmp_path,
 
 def test_the_second_tier_adds_library_tables_after_the_whole_ones(lib, tmp_path):
     """``--second-tier``: the shipped whole tables first, then the library's tables named,
-    flagged; a second-tier table is no whole table for an oracle (the library infers most
-    of it), and a damage the library lacks or the first tier holds is refused."""
+    flagged, with the gaits the build simulated (its checkpoints; the rest inferred); a
+    second-tier table is no whole table for an oracle (the library infers most of it), and
+    a damage the library lacks, the first tier holds or the checkpoints do not is refused."""
     from sela_ros.core.learning import DamagePriors, params_checksum, priors_path
     from sela_ros.core.learning.damage_priors import load_damage_priors
 
@@ -216,20 +217,32 @@ def test_the_second_tier_adds_library_tables_after_the_whole_ones(lib, tmp_path)
                            checksum)
     library.save(tmp_path / 'library.npz')
     map_path = tmp_path / 'map.npz'
-    lib.write_second_tier(map_path, archive, shipped, pair, tmp_path / 'library.npz')
+    out = tmp_path / 'checkpoints'
+    with pytest.raises(SystemExit, match='no gait of remove:front_left,remove:rear_right '
+                                         'evaluated'):
+        lib.write_second_tier(map_path, archive, shipped, pair, tmp_path / 'library.npz', out)
+    simulated = np.array([3, 7, 20])
+    (out / lib._slug(pair)).mkdir(parents=True)
+    np.savez(out / lib._slug(pair) / '000000.npz', gaits=simulated,
+             generic_reward=whole[simulated] * 0.5, fallen=np.zeros(3, bool))
+    lib.write_second_tier(map_path, archive, shipped, pair, tmp_path / 'library.npz', out)
     written = load_damage_priors(priors_path(map_path), archive.params)
     assert written.names == ('remove:front_left', pair)
     assert written.second_tier.tolist() == [False, True]
+    assert written.inferred(0) is None
+    assert np.flatnonzero(~written.inferred(1)).tolist() == [3, 7, 20]
     np.testing.assert_allclose(written.generic_reward[1], whole * 0.5, atol=1e-6)
     assert written.chained(0)[0].tolist() == [9] and not written.chained(1)[0].size
     # Written again over itself: the second tier is replaced, not stacked.
-    lib.write_second_tier(map_path, archive, written, pair, tmp_path / 'library.npz')
-    assert load_damage_priors(priors_path(map_path)).names == written.names
+    lib.write_second_tier(map_path, archive, written, pair, tmp_path / 'library.npz', out)
+    again = load_damage_priors(priors_path(map_path))
+    assert again.names == written.names
+    assert np.array_equal(again.simulated, written.simulated)
     assert lib.known_outcomes(archive, pair, tmp_path, 100, written,
                               tmp_path / 'oracle') is None
     with pytest.raises(SystemExit, match='remove:middle_left,remove:rear_right is no table'):
         lib.write_second_tier(map_path, archive, shipped, 'remove:middle_left,remove:rear_right',
-                              tmp_path / 'library.npz')
+                              tmp_path / 'library.npz', out)
     with pytest.raises(SystemExit, match='already a whole table'):
         lib.write_second_tier(map_path, archive, shipped, 'remove:front_left',
-                              tmp_path / 'library.npz')
+                              tmp_path / 'library.npz', out)

@@ -17,7 +17,8 @@ observed falls. A table is used only while it explains the steps well in absolut
 squared error below ``max_misfit``, in units of :data:`RESIDUAL_SCALE`; of an even number
 of steps the lower of the two middle ones, so that one surprise in the first two steps does
 not set the right table aside; up to ``max_misfit_reproduced`` for a table that reproduced
-every step the robot made from a standing start, which is what the table ran): a damage nobody
+the steps the robot made from a standing start, which is what the table ran: at least
+:data:`REPRODUCED_SHARE` of them): a damage nobody
 foresaw is best explained by the nearest table, which can still be wrong about most gaits,
 and then the intact map with SELA's usual learning does better (docs/notebook.md, "Damage
 priors"). The GPs keep their observations whatever prior is chosen; only their prior mean
@@ -55,9 +56,15 @@ DEFAULT_MAX_MISFIT = 0.6
 #: feet) is the experiment the table ran: the right table repeats it up to the position
 #: noise (squared error 0.02 per output). Its error counts as this many times smaller.
 STANDING_PRECISION = 3.0
-#: A table whose squared error per output is under this on every standing-start step seen
-#: has reproduced them; wrong tables rarely do (docs/notebook.md).
+#: A table whose squared error per output is under this on a standing-start step
+#: reproduced it; wrong tables rarely do (docs/notebook.md).
 REPRODUCED = 0.1
+#: The share of the standing-start steps seen that a table must have reproduced to have
+#: reproduced the robot's standing starts. A damage that tips the robot (both front legs
+#: lost) makes even a standing start vary: its own table missed 3 of 8 by 0.2-0.5 m
+#: (docs/learning_the_damage.md, "Two legs lost: standing starts by share, tables trusted
+#: where they were simulated").
+REPRODUCED_SHARE = 1.0 / 3.0
 #: The cap on the misfit of a table that reproduced the standing-start steps: its chained
 #: steps may then be off by more (a gait chained from an odd posture) before it is set aside.
 DEFAULT_MAX_MISFIT_REPRODUCED = 2.0
@@ -78,8 +85,8 @@ def params_checksum(params) -> str:
 class Selection:
     """Which prior :meth:`DamagePriors.select` chose: ``index`` into the tables (None: the
     archive's own, the intact map), its ``name``, its ``misfit``, and whether it
-    ``reproduced`` every step made from a standing start (the robot's own damage, then: its
-    chained runs hold for this robot). ``mixture``: a
+    ``reproduced`` the steps made from a standing start (:data:`REPRODUCED_SHARE` of them:
+    the robot's own damage, then; its chained runs hold for this robot). ``mixture``: a
     :class:`~sela_ros.core.learning.prior_mixture.Mixture` of the tables instead of one (``index``
     None), or None."""
 
@@ -108,6 +115,9 @@ class DamagePriors:
         reproduce_only: ``(K,)`` the second tier: tables used only once one of them has
             reproduced the robot's standing starts (:meth:`first_tier`; two legs lost at
             once), after every first-tier table; None: none is.
+        simulated: ``(K, M)`` which gaits each table simulated; the others were inferred
+            from them (the damage library's tables) and are not chosen while the table is
+            the prior (:meth:`inferred`); None: every gait of every table was simulated.
     """
 
     names: tuple
@@ -117,6 +127,7 @@ class DamagePriors:
     chained_runs: np.ndarray | None = None
     chained_falls: np.ndarray | None = None
     reproduce_only: np.ndarray | None = None
+    simulated: np.ndarray | None = None
 
     def __post_init__(self):
         gr, fallen = np.asarray(self.generic_reward), np.asarray(self.fallen)
@@ -154,9 +165,32 @@ class DamagePriors:
                                    f'the others: {list(self.names)}')
         object.__setattr__(self, '_second', second)
         object.__setattr__(self, '_first_tier', None)
+        if self.simulated is not None:
+            simulated = np.asarray(self.simulated)
+            if simulated.shape != fallen.shape or simulated.dtype != bool:
+                raise DamagePriorError(f'damage priors: simulated must be {fallen.shape} '
+                                       f'flags, got {simulated.shape} {simulated.dtype}')
+            empty = [n for n, row in zip(self.names, simulated) if not row.any()]
+            if empty:
+                raise DamagePriorError(f'damage priors: tables that simulated no gait: {empty}')
+        # Per table, its inferred gaits (None: it simulated every one).
+        object.__setattr__(self, '_inferred', [
+            None if self.simulated is None or row.all() else ~row
+            for row in (self.simulated if self.simulated is not None else [None] * k)])
 
     def __len__(self):
         return len(self.names)
+
+    def inferred(self, index: int) -> np.ndarray | None:
+        """``(M,)`` the gaits table ``index`` inferred rather than simulated; None: it
+        simulated every one (a whole table)."""
+        return self._inferred[index]
+
+    def _rows(self, keep):
+        """The optional per-table arrays cut to the tables ``keep`` (a slice or indices):
+        ``(chained_runs, chained_falls, simulated)``."""
+        return tuple(None if a is None else np.asarray(a)[keep]
+                     for a in (self.chained_runs, self.chained_falls, self.simulated))
 
     @property
     def second_tier(self) -> np.ndarray:
@@ -172,11 +206,10 @@ class DamagePriors:
             return self
         if self._first_tier is None:
             keep = int(np.sum(~self._second))
-            chained = [None if a is None else np.asarray(a)[:keep]
-                       for a in (self.chained_runs, self.chained_falls)]
+            runs, falls, simulated = self._rows(slice(0, keep))
             object.__setattr__(self, '_first_tier', DamagePriors(
                 tuple(self.names[:keep]), self.generic_reward[:keep], self.fallen[:keep],
-                self.archive_checksum, *chained))
+                self.archive_checksum, runs, falls, None, simulated))
         return self._first_tier
 
     def chained(self, index: int):
@@ -190,11 +223,10 @@ class DamagePriors:
     def without(self, name: str) -> DamagePriors:
         """The same tables less ``name`` (to measure a damage as if nobody foresaw it)."""
         keep = [i for i, n in enumerate(self.names) if n != name]
-        chained = [None if a is None else np.asarray(a)[keep]
-                   for a in (self.chained_runs, self.chained_falls)]
+        runs, falls, simulated = self._rows(keep)
         return DamagePriors(tuple(self.names[i] for i in keep), self.generic_reward[keep],
-                            self.fallen[keep], self.archive_checksum, *chained,
-                            self._second[keep])
+                            self.fallen[keep], self.archive_checksum, runs, falls,
+                            self._second[keep], simulated)
 
     def check_archive(self, params) -> None:
         """Raise :class:`DamagePriorError` unless the tables are for these gaits."""
@@ -220,7 +252,7 @@ class DamagePriors:
                 two middle errors); None: no table is.
             standing: ``(N,)`` which of the learnt steps started from a standing start (empty:
                 none). Their errors weigh :data:`STANDING_PRECISION` times more, and a table
-                that reproduced all of them (:data:`REPRODUCED`) is used up to
+                that reproduced them (:data:`REPRODUCED`, :data:`REPRODUCED_SHARE`) is used up to
                 ``max_misfit_reproduced`` instead of ``max_misfit``.
         """
         indices = np.asarray(indices, dtype=int).reshape(-1)
@@ -262,7 +294,8 @@ class DamagePriors:
         p = np.where(falls, P_FALL_IF_FALLS, P_FALL_IF_STANDS)
         loglik += np.sum(np.where(fallen, np.log(p), np.log1p(-p)), axis=1)
         best = int(np.argmax(loglik))
-        reproduced = bool(best and standing.any() and np.all(q[best, standing] / k < REPRODUCED))
+        reproduced = bool(best and standing.any() and np.mean(
+            q[best, standing] / k < REPRODUCED) >= REPRODUCED_SHARE)
         if max_misfit is not None and reproduced:
             max_misfit = max(max_misfit, max_misfit_reproduced)
         if best == 0 or max_misfit is None or misfit[best] > max_misfit:
@@ -274,6 +307,8 @@ class DamagePriors:
         chained = {} if self.chained_runs is None else {
             'chained_runs': np.asarray(self.chained_runs).astype(np.uint16),
             'chained_falls': np.asarray(self.chained_falls).astype(np.uint16)}
+        if self.simulated is not None:
+            chained['simulated'] = np.asarray(self.simulated, bool)
         atomic_write(path, lambda handle: np.savez_compressed(
             handle, names=np.array(self.names),
             generic_reward=self.generic_reward.astype(np.float32),
@@ -301,10 +336,11 @@ def load_damage_priors(path, params=None) -> DamagePriors:
             chained = [npz[key].astype(int) if key in npz.files else None
                        for key in ('chained_runs', 'chained_falls')]
             second = npz['reproduce_only'] if 'reproduce_only' in npz.files else None
+            simulated = npz['simulated'] if 'simulated' in npz.files else None
             priors = DamagePriors(tuple(str(n) for n in npz['names']),
                                   npz['generic_reward'].astype(float),
                                   npz['fallen'].astype(bool), str(npz['archive_checksum']),
-                                  *chained, second)
+                                  *chained, second, simulated)
     except DamagePriorError:
         raise
     except Exception as exc:  # truncated, not an npz, missing arrays

@@ -583,6 +583,7 @@ class SELA:
             scores = fall_risk.safe_choice(scores, risk, self.config.fall_risk_threshold)
         if nearer is not None and (nearer & np.isfinite(scores)).any():
             scores = np.where(nearer, scores, -np.inf)
+        scores = self._within_simulated(selection, scores)
         index = int(np.argmax(scores))
         if self.config.planner_horizon > 1 and second is not None \
                 and np.linalg.norm(second - waypoint) > 1e-6:
@@ -596,6 +597,24 @@ class SELA:
                         fall_risk=float(risk[index]),
                         candidates=top_candidates(index, x, y, sigma, scores),
                         prior=selection.name)
+
+    def _within_simulated(self, selection, scores):
+        """``scores`` with the gaits that ``selection``'s table inferred rather than
+        simulated (the damage library's tables: :meth:`DamagePriors.inferred`) and the robot
+        has not tried ruled out, if any gait allowed is left. The inferred outcomes of a
+        damage that tips the robot are often wrong where the simulated ones hold
+        (docs/learning_the_damage.md, "Two legs lost: standing starts by share, tables
+        trusted where they were simulated")."""
+        if selection.index is None:
+            return scores
+        inferred = self._tables().inferred(selection.index)
+        if inferred is None:
+            return scores
+        allowed = ~inferred
+        allowed[self.observations[0]] = True
+        if not (allowed & np.isfinite(scores)).any():
+            return scores
+        return np.where(allowed, scores, -np.inf)
 
     def _hedged_choice(self, pose, waypoint, path) -> Decision:
         """The first step on a damage not known yet: the gait whose landing is nearest the

@@ -90,9 +90,9 @@ class SELAConfig:
     # squared error over the steps seen is below this (units of the chaining error); None
     # (none): no table is used on its own.
     priors_max_misfit: float | None = damage_priors.DEFAULT_MAX_MISFIT
-    # The same cap for a table that reproduced every step the robot made from a standing
-    # start (what the table ran; needs tell(..., standing_start=True)); below priors.max.misfit:
-    # no exception.
+    # The same cap for a table that reproduced the steps the robot made from a standing
+    # start (what the table ran; needs tell(..., standing_start=True); a third of them or
+    # more: damage_priors.REPRODUCED_SHARE); below priors.max.misfit: no exception.
     priors_max_misfit_reproduced: float = damage_priors.DEFAULT_MAX_MISFIT_REPRODUCED
     # Prior standard deviation of each table's weight in the mixture of damage priors that is
     # the prior mean while no table reproduced the robot's standing starts

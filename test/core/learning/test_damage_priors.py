@@ -439,3 +439,83 @@ def test_the_second_tier_is_used_only_once_it_reproduced_the_standing_starts():
             model.tell_fall(picks[0].index, False)
             model.tell(picks[0].index, true[picks[0].index], standing_start=step == 0)
     assert picks[0].prior == 'remove:front_left'
+
+
+def test_a_share_of_the_standing_starts_reproduced_is_enough():
+    """A damage that tips the robot makes even a standing start vary: the table that
+    reproduced a third of the standing starts has reproduced them (the misfit cap of a
+    reproduced table applies); a quarter is not enough."""
+    _, intact, priors, _ = world()
+    idx = np.flatnonzero(~priors.fallen[0])[:4]
+    table = priors.generic_reward[0][idx]
+    off = [0.15, -0.15, 0.3]  # about 2 per output, in units of the chaining error
+    seen = np.vstack([table[0], table[1:] + off])
+    third = priors.select(intact, idx[:3], seen[:3], standing=[True, True, True])
+    assert third.name == 'remove:front_left' and third.reproduced
+    quarter = priors.select(intact, idx, seen, standing=[True, True, True, True])
+    assert not quarter.reproduced
+
+
+def test_which_gaits_a_table_simulated_round_trips_and_is_checked(tmp_path):
+    _, intact, priors, _ = world()
+    simulated = np.ones((3, M), bool)
+    simulated[2, 100:] = False
+    both = DamagePriors((*priors.names, 'remove:front_left,remove:rear_left'),
+                        np.concatenate([priors.generic_reward, intact[None] * 0.2]),
+                        np.concatenate([priors.fallen, np.zeros((1, M), bool)]),
+                        priors.archive_checksum, None, None, np.array([False, False, True]),
+                        simulated)
+    assert both.inferred(0) is None and np.flatnonzero(both.inferred(2)).tolist() == list(
+        range(100, M))
+    assert both.first_tier().inferred(1) is None and both.first_tier().simulated.shape == (2, M)
+    assert both.without('remove:front_left').inferred(1).sum() == M - 100
+    both.save(tmp_path / 'p.npz')
+    again = load_damage_priors(tmp_path / 'p.npz')
+    assert np.array_equal(again.simulated, simulated) and again.inferred(0) is None
+    priors.save(tmp_path / 'whole.npz')  # no field: every gait simulated
+    assert load_damage_priors(tmp_path / 'whole.npz').inferred(1) is None
+    with pytest.raises(DamagePriorError, match=r'simulated must be \(2, 300\) flags'):
+        DamagePriors(priors.names, priors.generic_reward, priors.fallen,
+                     priors.archive_checksum, simulated=np.ones((2, M), int))
+    with pytest.raises(DamagePriorError, match="simulated no gait: .'remove:rear_left'"):
+        DamagePriors(priors.names, priors.generic_reward, priors.fallen,
+                     priors.archive_checksum, simulated=np.array([[True] * M, [False] * M]))
+
+
+def test_while_a_partly_inferred_table_is_the_prior_only_its_simulated_gaits_are_chosen():
+    """The damage library's tables infer most gaits from those they simulated: while such a
+    table is the prior, SELA chooses among the gaits it simulated and those the robot has
+    tried, though an inferred one is predicted to land nearer the waypoint."""
+    candidates, intact, priors, _ = world()
+    pair = intact * 0.15
+    waypoint = np.array([0.6, 0.0])
+    config = SELAConfig(gp_kernel_sigma=0.3, acquisition_ucb_alpha=0.0, fall_risk_cost=0.0)
+
+    def third_step(simulated):
+        both = DamagePriors((*priors.names, 'remove:front_left,remove:rear_left'),
+                            np.concatenate([priors.generic_reward, pair[None]]),
+                            np.concatenate([priors.fallen, np.zeros((1, M), bool)]),
+                            priors.archive_checksum, None, None,
+                            np.array([False, False, True]), simulated)
+        sela = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config,
+                    priors=both)
+        tried = []
+        for standing in (True, False):
+            decision = sela.ask(np.zeros(3), waypoint=waypoint)
+            sela.tell_fall(decision.index, False)
+            sela.tell(decision.index, pair[decision.index], standing_start=standing)
+            tried.append(decision.index)
+        decision = sela.ask(np.zeros(3), waypoint=[0.0, 0.6])  # where no gait tried goes
+        assert decision.prior == 'remove:front_left,remove:rear_left'
+        return decision.index, tried
+
+    best, tried = third_step(None)
+    assert best not in tried
+    simulated = np.ones((3, M), bool)
+    simulated[2, best] = False
+    pick, again = third_step(simulated)
+    assert again == tried and pick != best and pick not in tried
+    # A gait the robot has tried stays in the running, inferred or not.
+    simulated[2, tried] = False
+    pick, _ = third_step(simulated)
+    assert pick != best
