@@ -25,7 +25,8 @@ def _mission(early_goal):
         if early_goal:
             mission.publish_goal(*GOAL)
         nodes = NodeProcesses(SETUP)
-        mission.go_to_pose(*GOAL, timeout=120)
+        # The nodes start under the load: their start-up is part of this wait, as of the next.
+        mission.go_to_pose(*GOAL, timeout=600)
         client.spin_until(mission.get_result, 600, 'the end of the mission')
         assert mission.get_result().success, nodes.logs()
         return [s.behavior_index for s in mission.steps]
