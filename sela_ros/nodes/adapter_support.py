@@ -31,11 +31,11 @@ def load_priors(setting, archive, path, logger):
         partly = [i for i in range(len(priors)) if priors.inferred(i) is not None]
         if partly:
             counts = sorted({int((~priors.inferred(i)).sum()) for i in partly})
-            span = '-'.join(map(str, sorted({counts[0], counts[-1]})))
+            span = '-'.join(map(str, (counts[0], counts[-1])[:len(counts)]))
             logger.info(f'damage priors: {len(partly)} tables partly inferred (each simulated '
-                        f'{span} of '
-                        f'{priors.num_candidates} gaits): while one is the prior, the choice '
-                        'is among the gaits it simulated and those the robot has tried')
+                        f'{span} of {priors.num_candidates} gaits): while one is the prior, '
+                        'the choice is among the gaits it simulated and those the robot has '
+                        'tried')
     return priors
 
 
