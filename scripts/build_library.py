@@ -278,7 +278,8 @@ def known_outcomes(archive, spec, out=None, gaits=DEFAULT_GAITS, shipped=None,
 
 
 def assemble(archive, out, gaits, library, shipped=None, only=None, partial=False):
-    """Write the library: every condition's table, the gaits not evaluated inferred. A
+    """Write the library: every condition's table, the gaits not evaluated inferred and
+    flagged so (``DamagePriors.simulated``: SELA trusts a table only where it simulated). A
     condition whose whole table ships (``shipped``, the map's own damage priors) is taken
     from there, chained runs included. ``partial``: conditions with only part of their gaits
     evaluated are inferred from those, conditions with none are left out (both listed)."""
@@ -288,6 +289,7 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
     descriptors = archive.normalised_descriptors()
     shipped_names = tuple(shipped.names) if shipped is not None else ()
     names, tables, falls, runs, chained_falls, short, missing = [], [], [], [], [], [], []
+    simulated = []
     for spec in conditions():
         if only and spec not in only:
             continue
@@ -298,6 +300,8 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
             row_runs = np.zeros(len(archive), int)
             row_falls = np.zeros(len(archive), int)
             row_runs[chained], row_falls[chained] = runs_of, falls_of
+            row_simulated = np.ones(len(archive), bool) if shipped.simulated is None \
+                else shipped.simulated[i]
         else:
             done, done_gr, done_fallen = _evaluated(out, spec)
             if len(done) < planned and not partial:
@@ -311,14 +315,17 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
             gr, fallen = infer(descriptors, archive.generic_reward, done, done_gr,
                                done_fallen, archive.kernel_sigma)
             row_runs, row_falls = np.zeros(len(archive), int), np.zeros(len(archive), int)
+            row_simulated = np.zeros(len(archive), bool)
+            row_simulated[done] = True
         names.append(spec)
         tables.append(gr)
         falls.append(fallen)
         runs.append(row_runs)
         chained_falls.append(row_falls)
+        simulated.append(row_simulated)
     DamagePriors(tuple(names), np.stack(tables), np.stack(falls),
                  params_checksum(archive.params), np.stack(runs),
-                 np.stack(chained_falls)).save(library)
+                 np.stack(chained_falls), simulated=np.stack(simulated)).save(library)
     print(f'{library}: {len(names)} conditions, {Path(library).stat().st_size / 1e6:.1f} MB')
     if short:
         print(f'  inferred from fewer than {planned} gaits: {", ".join(short)}')

@@ -123,6 +123,9 @@ def test_assembly_takes_whole_shipped_tables_and_infers_the_rest(lib, tmp_path):
     assert gaits.tolist() == [5] and chained_runs.tolist() == [4] and chained_falls.tolist() == [1]
     inferred = library.generic_reward[1]
     np.testing.assert_allclose(inferred[subset[:60]], truth[subset[:60]], atol=1e-6)
+    # Flagged: the shipped table simulated every gait, the pair only the 60 evaluated.
+    assert library.inferred(0) is None
+    assert np.flatnonzero(~library.inferred(1)).tolist() == sorted(subset[:60].tolist())
     # The gaits not evaluated: nearer the damaged robot's outcomes than the intact map.
     rest = np.setdiff1d(np.arange(m), subset[:60])
     assert np.abs(inferred[rest] - truth[rest]).mean() < \

@@ -519,3 +519,17 @@ def test_while_a_partly_inferred_table_is_the_prior_only_its_simulated_gaits_are
     simulated[2, tried] = False
     pick, _ = third_step(simulated)
     assert pick != best
+
+
+def test_the_shipped_library_flags_the_gaits_each_built_table_simulated():
+    """The library's built tables simulated 4,000 gaits each and inferred the rest; the
+    whole tables it takes from the shipped priors simulated every gait."""
+    from sela_ros.core.storage import default_archive_path
+
+    library = load_damage_priors(priors_path(default_archive_path(), library=True))
+    shipped = load_damage_priors(priors_path(default_archive_path()))
+    whole = [n for i, n in enumerate(library.names) if library.inferred(i) is None]
+    assert sorted(whole) == sorted(shipped.first_tier().names)
+    counts = {int((~library.inferred(i)).sum()) for i, n in enumerate(library.names)
+              if n not in whole}
+    assert counts == {4000} and len(library.names) - len(whole) == 84
