@@ -1,15 +1,20 @@
-"""Is the archive built for the simulator that runs? Asked once per archive, never waited on.
+"""Is the archive built for the simulator that runs? Asked once per archive, never waited on;
+a question not answered within :data:`ANSWER_TIMEOUT` (a response DDS lost) is asked again.
 
 The archive's generic rewards only mean something on a simulator with the same ``sim.dt``,
 ``sim.gait_duration`` and ``sim.solver_iterations``; this helper asks the simulator node for
 them (its parameter service) and says whether the stepper must hold its gaits, and why.
 """
+import time
+
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import GetParameters
 
 from sela_ros.core.storage import SETTING_DEFAULTS, ArchiveError, check_settings
 
 SETTINGS = ('sim.dt', 'sim.gait_duration', 'sim.solver_iterations')
+#: s (wall) to wait for the simulator's answer before asking again.
+ANSWER_TIMEOUT = 5.0
 
 
 class SimulatorCheck:
@@ -20,30 +25,50 @@ class SimulatorCheck:
         self.client = (node.create_client(GetParameters, f'{simulator}/get_parameters')
                        if simulator else None)
         self.on_hold = on_hold
+        self.logger = node.get_logger()
         self.archive = self.source = None
         self.asked = False
+        self._pending = None  # the question not answered yet, and when it was asked
+        self._asked_at = 0.0
 
     def use(self, archive, source):
         """A new archive: it gets its own check, and no gait goes out before it answers
         (a goal that comes before the simulator's parameter service is seen waits for it)."""
         self.archive, self.source, self.asked = archive, source, False
+        self._forget_pending()
         if self.client is not None:
             self.on_hold('')
 
     def poll(self):
-        """Ask, if not asked yet for this archive and the simulator answers requests."""
-        if (self.asked or self.archive is None or self.client is None
-                or not self.client.service_is_ready()):
+        """Ask, if not asked yet for this archive (or asked and not answered within
+        :data:`ANSWER_TIMEOUT`) and the simulator answers requests."""
+        if self.archive is None or self.client is None:
+            return
+        if self.asked:
+            if self._pending is None or time.monotonic() - self._asked_at < ANSWER_TIMEOUT:
+                return
+            self.logger.warn(f'{self.client.srv_name}: no answer in {ANSWER_TIMEOUT:g} s, '
+                             'asking again')
+            self._forget_pending()
+        if not self.client.service_is_ready():
             return
         self.asked = True
         self.on_hold('')
         archive = self.archive
         future = self.client.call_async(GetParameters.Request(names=list(SETTINGS)))
-        future.add_done_callback(lambda f: self._answer(f.result(), archive))
+        self._pending, self._asked_at = future, time.monotonic()
+        future.add_done_callback(lambda f: self._answer(f, archive))
 
-    def _answer(self, answer, archive):
-        if archive is not self.archive:
-            return  # the archive changed meanwhile: it gets its own check
+    def _forget_pending(self):
+        if self._pending is not None:
+            self.client.remove_pending_request(self._pending)  # a late answer is dropped
+            self._pending = None
+
+    def _answer(self, future, archive):
+        if future is not self._pending or archive is not self.archive:
+            return  # asked again since, or the archive changed: it gets its own check
+        self._pending = None
+        answer = future.result()
         values = answer.values if answer is not None else []
         if len(values) != 3 or any(v.type != ParameterType.PARAMETER_DOUBLE
                                    for v in values[:2]):

@@ -249,7 +249,11 @@ def test_a_mission_through_the_executor_takes_the_direct_paths_gaits_and_outcome
             conv.behavior_from_msg(m)[1], conv.behavior_from_msg(m)[0]))
         client.wait_for_publishers([ifc.JOINT_TRAJECTORY.root_name])
         watcher.send_goal(*goal)
-        client.spin_until(watcher.get_result, 400, 'the end of the mission')
+        try:  # within pytest's own timeout (pytest.ini), so that a stall says where it was
+            client.spin_until(watcher.get_result, 270, 'the end of the mission')
+        except TimeoutError as exc:
+            raise AssertionError((str(exc), len(watcher.steps), rec.errors, nodes.logs())) \
+                from None
         assert watcher.get_result().success, (watcher.get_result(), nodes.logs())
         # Each command: one trajectory of the description's joints, one outcome (the
         # executor's: the simulator gives none on its hardware face). A command the adapter
