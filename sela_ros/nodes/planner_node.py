@@ -14,7 +14,8 @@ The map comes from ``map.file`` (map_server's YAML + image, or the project's YAM
 (what map_server publishes: reliable, transient local). A map that cannot be used is reported
 on ``diagnostics`` and the current one kept. The map in use is published, latched, on
 ``~/map``. A goal on ``goal_pose`` is checked against the map and planned from the latest
-odometry, so a bad goal is reported as soon as it is sent.
+odometry, so a bad goal is reported as soon as it is sent; a goal sent before the first
+odometry is planned when it comes.
 """
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Path
@@ -102,6 +103,7 @@ class PlannerNode(Node):
         self.map_error = None
         self.pose = None
         self.goal = None
+        self._goal_stamp = None  # a goal taken before any odometry: planned on the first pose
         self.grid = self.planner = None
 
         self.map_pub = ifc.publisher(self, ifc.MAP)
@@ -230,6 +232,14 @@ class PlannerNode(Node):
             self.pose = conv.pose_from_odometry(msg)
         except conv.MessageError as exc:
             self.get_logger().error(f'ignored odometry: {exc}', throttle_duration_sec=1.0)
+            return
+        if self._goal_stamp is not None and self.goal is not None:
+            stamp, self._goal_stamp = self._goal_stamp, None
+            try:
+                self._plan(self.pose[:2], self.goal, stamp)
+            except PlanningError as exc:
+                self._report(DiagnosticStatus.ERROR, f'goal ({self.goal[0]:.2f}, '
+                             f'{self.goal[1]:.2f}) not planned: {exc}')
 
     @guard
     def goal_callback(self, msg):
@@ -244,7 +254,10 @@ class PlannerNode(Node):
         self.goal = goal
         self.get_logger().info(f'goal ({goal[0]:.2f}, {goal[1]:.2f})')
         self._prepare_goal()
-        if self.pose is not None:
+        if self.pose is None:
+            self._goal_stamp = msg.header.stamp
+        else:
+            self._goal_stamp = None
             self._plan(self.pose[:2], goal, msg.header.stamp)
 
     @guard_service

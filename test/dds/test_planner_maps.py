@@ -1,12 +1,14 @@
 """The planner node over DDS: maps from a map_server file, from the ``map`` topic, and bad
 maps refused with the reason while the current map is kept."""
 import math
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from nav_msgs.msg import OccupancyGrid
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import OccupancyGrid, Odometry
 from nav_msgs.msg import Path as PathMsg
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -16,7 +18,7 @@ from sela_ros.core.planning import load_map_file
 from sela_ros.core.planning.maps import DEFAULT_MAP, grid_from_description
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import grid_conversions as grids
-from sela_ros.nodes.interface import LATCHED_QOS, STATE_QOS
+from sela_ros.nodes.interface import GOAL_QOS, LATCHED_QOS, STATE_QOS
 
 from ros_graph import Client, NodeProcesses
 
@@ -167,3 +169,37 @@ def test_maps_from_a_file_and_the_map_topic_and_bad_ones_refused(planner, tmp_pa
         request = GetPlan.Request(start=conv.pose_stamped(start), goal=conv.pose_stamped(goal))
         assert not client.call(watch.make_plan, request).plan.poses
         client.spin_until(lambda r=reason: watch.errors(r), 30, f'{reason} reported')
+
+
+def test_a_goal_sent_before_any_odometry_is_planned_when_the_first_pose_comes(planner):
+    """A goal can reach the planner before the robot's first odometry (a stack just
+    started): its path comes with the first pose, not never."""
+    nodes, watch = planner
+    client = watch.client
+    goal, start = (4.5, 4.5), (0.0, 0.0, 0.0)
+    goal_pub = client.node.create_publisher(PoseStamped, '/goal_pose', GOAL_QOS)
+    client.spin_until(lambda: goal_pub.get_subscription_count() >= 1, 60, 'the planner')
+    client.spin_until(lambda: watch.make_plan.service_is_ready(), 60, 'make_plan')
+    goal_stamp = conv.time_to_msg(7.0)
+
+    def taken():
+        """The planner holds the goal: ``make_plan`` with an empty goal plans to it."""
+        goal_pub.publish(conv.pose_stamped(goal, stamp=7.0))
+        answer = client.call(watch.make_plan, GetPlan.Request(
+            start=conv.pose_stamped((0.5, 0.5), stamp=1.0), goal=PoseStamped()))
+        return answer.plan.poses and np.allclose(conv.path_from_msg(answer.plan)[-1], goal)
+    client.spin_until(taken, 60, 'the goal taken')
+    assert not any(p.header.stamp == goal_stamp for p in watch.paths)  # no pose yet
+
+    odom_pub = client.node.create_publisher(Odometry, '/hexapod/odom', STATE_QOS)
+    sent = []
+
+    def planned():
+        if not sent or time.monotonic() - sent[-1] > 0.5:  # as sim_bridge: a stream
+            odom_pub.publish(conv.odometry_msg(start, stamp=8.0))
+            sent.append(time.monotonic())
+        return any(p.header.stamp == goal_stamp for p in watch.paths)
+    client.spin_until(planned, 60, "the goal's path from the first pose")
+    path = conv.path_from_msg(next(p for p in watch.paths if p.header.stamp == goal_stamp))
+    assert np.allclose(path[0], start[:2]) and np.allclose(path[-1], goal)
+    assert all(nodes.alive().values()), nodes.logs()

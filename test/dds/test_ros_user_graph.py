@@ -116,8 +116,12 @@ def test_the_readme_goal_command_reaches_planner_and_adapter_every_time(stack, r
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         client.spin_until(lambda p=proc: p.poll() is not None, 90, 'the publisher to exit')
         assert proc.returncode == 0, proc.stdout.read()
-        client.spin_until(lambda g=goal: heard.took(g), 30,
-                          f'try {i + 1}: goal {goal} taken by the planner and the adapter')
+        try:
+            client.spin_until(lambda g=goal: heard.took(g), 30,
+                              f'try {i + 1}: goal {goal} taken by the planner and the adapter')
+        except TimeoutError as exc:  # which node missed it: their logs
+            pytest.fail(f'{exc}; adapter took {heard.goals}, paths end at '
+                        f'{heard.path_ends}; {nodes.logs()}')
     assert all(nodes.alive().values()), nodes.logs()
 
 
