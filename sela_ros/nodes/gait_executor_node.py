@@ -26,6 +26,11 @@ whose end is not seen within ``gait_timeout``, ends it without an outcome, repor
 way. With no outcome, the adapter sends the same command again after its
 ``outcome_timeout`` (10 s): a robot whose odometry comes back carries on, one whose odometry
 stays away does not move.
+
+The stamps must be one clock's (:class:`ClockCheck`): a gait is refused while the stamps on a
+topic keep going back (two publishers on different clocks: twice within ``CLOCK_WINDOW``) or
+while the odometry's and the IMU's are more than a gait apart, and a running gait ends
+without an outcome when its stamps go back (a clock reset): its end could not be told.
 """
 import math
 import time
@@ -51,6 +56,8 @@ TICK = 0.02
 STAMP_EPS = 1e-6
 #: The simulator's fall test: tilted more than 60 deg (sim_bridge.model.FALL_TILT).
 FALL_TILT = math.radians(60.0)
+#: s (wall): stamps that went back twice within this are two clocks, not one reset.
+CLOCK_WINDOW = 5.0
 
 
 def _robot_rule(value):
@@ -161,6 +168,7 @@ class GaitExecutor(Node):
         self.odom = None  # newest (wall time received, stamp, message)
         self.finished = None  # wall time the last gait ended
         self.imu = None
+        self.clocks = ClockCheck(self.odometry_topic, self.imu_topic)
         self._next_auto_id = 1_000_000_000
         self.started = time.monotonic()
 
@@ -228,6 +236,8 @@ class GaitExecutor(Node):
     @guard
     def odometry_callback(self, msg):
         self.odom = (time.monotonic(), conv.time_from_msg(msg.header.stamp), msg)
+        if self._clock_went_back(self.odometry_topic, self.odom):
+            return
         if self.gait is not None:
             self.gait.odometry(self.odom[1], msg)
             self._finish_if_ended()
@@ -235,9 +245,24 @@ class GaitExecutor(Node):
     @guard
     def imu_callback(self, msg):
         self.imu = (time.monotonic(), conv.time_from_msg(msg.header.stamp), msg)
+        if self._clock_went_back(self.imu_topic, self.imu):
+            return
         if self.gait is not None:
             self.gait.attitude(self.imu[1], msg.orientation)
             self._finish_if_ended()
+
+    def _clock_went_back(self, topic, sample):
+        """True when ``sample``'s stamp is older than the last on ``topic``; a running gait
+        then ends without an outcome (its end can no longer be told)."""
+        back = self.clocks.seen(topic, sample[0], sample[1])
+        if back is None:
+            return False
+        if self.gait is not None:
+            gait, self.gait = self.gait, None
+            self._error('gait', f'gait {gait.behavior_id} ended without an outcome: the '
+                        f'stamps on {topic} went back {back:.3f} s during it (a clock reset, '
+                        'or two publishers on different clocks); the adapter sends it again')
+        return True
 
     # --- the gait ------------------------------------------------------------------------
 
@@ -286,7 +311,7 @@ class GaitExecutor(Node):
 
     def _ready(self, now):
         """True: a gait may start now. False: waiting for a fresh pose. Raises _Refused."""
-        problem = self._stale(now)
+        problem = self._stale(now) or self.clocks.problem(now, self.duration)
         if problem is not None:
             raise _Refused('odometry', f'{problem}; the adapter sends it again after its '
                            'outcome_timeout')
@@ -353,6 +378,47 @@ class _Refused(Exception):
     def __init__(self, what, message):
         super().__init__(message)
         self.what = what
+
+
+class ClockCheck:
+    """Whether the odometry's (and IMU's) stamps can be one clock's.
+
+    A stamp older than the one before it on the same topic went back: once is a clock reset
+    (a simulator restarted), again within :data:`CLOCK_WINDOW` is two publishers on different
+    clocks. The odometry's and the IMU's newest stamps more than a gait apart are two clocks
+    as well: the gait's end, told on one, would never come (or come at once) on the other.
+    """
+
+    def __init__(self, odometry_topic, imu_topic=''):
+        self.topics = [t for t in (odometry_topic, imu_topic) if t]
+        self.last = {}  # topic: newest (wall, stamp)
+        self.back = {t: deque(maxlen=2) for t in self.topics}  # (wall, seconds back)
+
+    def seen(self, topic, wall, stamp):
+        """Record a message; the seconds its stamp went back, or None."""
+        previous = self.last.get(topic)
+        self.last[topic] = (wall, stamp)
+        if previous is None or stamp >= previous[1] - STAMP_EPS:
+            return None
+        back = previous[1] - stamp
+        self.back[topic].append((wall, back))
+        return back
+
+    def problem(self, now, gait_duration):
+        """Why the stamps cannot be trusted now, or None."""
+        for topic in self.topics:
+            jumps = self.back[topic]
+            if len(jumps) == 2 and now - jumps[0][0] <= CLOCK_WINDOW:
+                return (f'the stamps on {topic} went back twice within {CLOCK_WINDOW:g} s '
+                        f'(by {max(b for _, b in jumps):.3f} s): two publishers on different '
+                        'clocks?')
+        if len(self.topics) == 2 and all(t in self.last for t in self.topics):
+            (_, odom), (_, imu) = (self.last[t] for t in self.topics)
+            if abs(odom - imu) > gait_duration:
+                return (f'the stamps on {self.topics[0]} ({odom:.3f} s) and {self.topics[1]} '
+                        f'({imu:.3f} s) are {abs(odom - imu):.3f} s apart, more than a gait: '
+                        'not one clock')
+        return None
 
 
 class RunningGait:

@@ -2,6 +2,7 @@
 joint_trajectory_controller's topic and measures them on an odometry topic; sim_bridge's
 hardware face plays them in the simulator (or this test plays a robot itself)."""
 import math
+import time
 
 import numpy as np
 import pytest
@@ -189,6 +190,54 @@ def test_executor_refuses_without_odometry_or_controller_and_measures_any_robot(
               timeout=30)
     assert [o.behavior_id for o in rec.outcomes] == [3]
     assert len(received) == 2  # gaits 3 and 4, gait 3 once
+    timer.cancel()
+    assert all(nodes.alive().values()), nodes.logs()
+
+
+def test_stamps_of_two_clocks_refuse_a_gait_and_a_clock_reset_ends_one(fake_robot):
+    """Odometry from two publishers on different clocks (a simulator's and the wall's) cannot
+    tell a gait's end: refused, said. On one clock the gait runs; a clock that goes back
+    during it (a simulator restarted) ends it without an outcome, said, at once."""
+    nodes, client, rec = fake_robot
+    node = client.node
+    gait = _forward_gait()
+    client.wait_for_publishers([ifc.DIAGNOSTICS.root_name, ifc.OUTCOME.root_name])
+    received = []
+    node.create_subscription(ifc.JOINT_TRAJECTORY.type, ifc.JOINT_TRAJECTORY.name,
+                             received.append, ifc.COMMAND_QOS)
+    odom_pub = node.create_publisher(ifc.ODOM.type, FAKE_ODOM, ifc.STATE_QOS)
+    stamps, clocks, sent = [100.0, 1.7e9], [2], [0]
+
+    def publish_odometry():  # the clocks in turn, each advancing 0.05 s a message
+        sent[0] += 1
+        which = sent[0] % clocks[0]
+        stamps[which] += 0.05
+        odom_pub.publish(conv.odometry_3d_msg((0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0),
+                                              stamps[which]))
+    timer = node.create_timer(0.05, publish_odometry)
+    client.spin_until(lambda: odom_pub.get_subscription_count() > 0, 30, 'the executor')
+    heard_from = sent[0]
+    client.spin_until(lambda: sent[0] > heard_from + 10, 30, 'odometry sent to the executor')
+    client.wait_for_publishers([ifc.JOINT_TRAJECTORY.root_name], settle=1.0)
+    rec.command(gait, 1)
+    rec.error('gait_executor: odometry', 'gait 1 not played', 'went back twice', FAKE_ODOM)
+    assert not received
+
+    # One clock: the gait is played once the other has been gone a while (the adapter sends
+    # a refused gait again, as here).
+    clocks[0] = 1
+    tries = []
+
+    def played():
+        refused = tries and any('gait 2 not played' in m for _, m in rec.errors[tries[-1][1]:])
+        if not received and (not tries or refused and time.monotonic() - tries[-1][0] > 1.0):
+            tries.append((time.monotonic(), len(rec.errors)))
+            rec.command(gait, 2)
+        return bool(received)
+    client.spin_until(played, 60, 'gait 2 played on one clock')
+    stamps[0] = 0.5  # the simulator restarted mid-gait
+    rec.error('gait_executor: gait', 'gait 2 ended without an outcome', 'went back')
+    assert not any(o.behavior_id == 2 for o in rec.outcomes)
     timer.cancel()
     assert all(nodes.alive().values()), nodes.logs()
 
