@@ -125,6 +125,32 @@ def test_the_readme_goal_command_reaches_planner_and_adapter_every_time(stack, r
     assert all(nodes.alive().values()), nodes.logs()
 
 
+def test_the_readme_goal_command_before_the_simulator_is_up_is_planned_and_reached(ros_env):
+    """A stack whose simulator comes up last (a slow start): the goal sent before any
+    odometry gets its path when the first pose comes, and the mission ends there."""
+    nodes = NodeProcesses(names=('planner', 'damage_detector', 'sela_adapter'))
+    client = Client('goal_before_odometry')
+    try:
+        heard = Heard(client)
+        goal = (0.03, -0.04)  # within goal.eps of the start: reached at once
+        proc = subprocess.run([sys.executable, str(HERE / 'topic_pub.py'), '/goal_pose',
+                               str(goal[0]), str(goal[1]), '2', '5.0'], env=ros_env,
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert not heard.path_ends  # no pose yet: no path
+        nodes.start('sim_bridge')
+        try:
+            client.spin_until(lambda: heard.took(goal), 120,
+                              'the goal taken by the planner and the adapter')
+        except TimeoutError as exc:
+            pytest.fail(f'{exc}; adapter took {heard.goals}, paths end at '
+                        f'{heard.path_ends}; {nodes.logs()}')
+        assert all(nodes.alive().values()), nodes.logs()
+    finally:
+        client.close()
+        nodes.stop()
+
+
 def test_two_namespaced_stacks_in_one_domain_each_reach_their_own_goal():
     goals = {'/robot1': (0.5, 0.0), '/robot2': (0.0, -0.5)}
     stacks = {ns: NodeProcesses({'sim_bridge': {'damage': 'intact'}}, namespace=ns)

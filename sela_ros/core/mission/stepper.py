@@ -20,7 +20,12 @@ from sela_ros.core.learning.sela import Decision, prior_reason
 from sela_ros.core.mission import stepper_io as io
 from sela_ros.core.mission.logic import MissionLogic
 from sela_ros.core.mission.reach import sela_lookahead
-from sela_ros.core.mission.status import detection_status, goal_status, mission_status
+from sela_ros.core.mission.status import (
+    detection_status,
+    goal_status,
+    mission_status,
+    vector_text,
+)
 from sela_ros.core.mission.stepper_io import (
     AskedPlan,
     Level,
@@ -553,8 +558,13 @@ class MissionStepper:
         return Level.WARN if self.ended[0] in USER_ENDS else Level.ERROR
 
     def _result_status(self):
+        """The result, with the goal it ended at: repeated while idle, it tells a client that
+        matched late (or missed the goal's own status) which goal it answers."""
         code, reason = self.ended
-        return PublishStatus(self._end_level(), reason, dict(self.status(), code=code))
+        values = dict(self.status(), code=code)
+        if self.goal is not None:
+            values['goal'] = vector_text(self.goal)
+        return PublishStatus(self._end_level(), reason, values)
 
     def _bound_learning(self):
         """Over a robot's life, learning keeps the latest ``max_observations`` observations

@@ -238,6 +238,7 @@ def test_each_mission_is_numbered_and_its_result_names_it_also_after_a_restart()
     out = d.outcome(gait) + d(VerdictReceived(gait.behavior_id, False))
     final = [s.values for s in of(out, PublishStatus) if 'success' in s.values]
     assert final[0]['mission'] == '1' and final[0]['success'] == 'True'
+    assert final[0]['goal'] == '0.250000 0.000000'  # a client that missed the goal's status
     # The same goal again is a new mission: a client can tell its result from the last one.
     out = d(GoalReceived((0.25, 0.0)))
     assert {s.values['mission'] for s in of(out, PublishStatus)} == {'2'}  # taken (and done)
