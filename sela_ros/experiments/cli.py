@@ -27,9 +27,13 @@ import os
 import sys
 from dataclasses import dataclass
 
-from sela_ros.core.learning import DamagePriorError
-from sela_ros.core.storage import atomic_write_bytes
-from sela_ros.experiments import arguments
+from sela_ros import single_blas_thread
+
+single_blas_thread()  # before numpy: each worker one BLAS thread
+
+from sela_ros.core.learning import DamagePriorError  # noqa: E402
+from sela_ros.core.storage import atomic_write_bytes  # noqa: E402
+from sela_ros.experiments import arguments  # noqa: E402
 
 
 @dataclass(frozen=True)
