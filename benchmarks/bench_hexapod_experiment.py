@@ -16,7 +16,9 @@ import argparse
 import json
 import os
 
-os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+from sela_ros import single_blas_thread  # noqa: E402
+
+single_blas_thread()  # before numpy
 
 import tempfile  # noqa: E402
 import time  # noqa: E402

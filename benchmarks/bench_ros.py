@@ -22,7 +22,10 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test' / 'dds'))
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random().randint(100, 101)))
-os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
+from sela_ros import single_blas_thread  # noqa: E402
+
+single_blas_thread()  # before numpy
 
 from sela_ros.tools.ros_env import ensure_ros_environment  # noqa: E402
 

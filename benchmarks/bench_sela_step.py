@@ -4,16 +4,16 @@ Run: ``.venv/bin/python benchmarks/bench_sela_step.py [--toy-replicates N]``.
 Prints figures only; tests never assert on timings.
 """
 import argparse
-import os
-
-# One BLAS thread: on a shared, loaded machine OpenBLAS's threads for the (N, M) products
-# cost 3-4x more than they save (measured: 20 ms vs 6 ms per step at 1e5 candidates).
-os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
-
 import subprocess
 import sys
 import tempfile
 import time
+
+from sela_ros import single_blas_thread
+
+# One BLAS thread, as the nodes: on a shared, loaded machine OpenBLAS's threads for the
+# (N, M) products cost 3-4x more than they save (20 ms vs 6 ms per step at 1e5 candidates).
+single_blas_thread()
 
 import numpy as np  # noqa: E402
 

@@ -64,7 +64,9 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import NamedTuple
 
-os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+from sela_ros import single_blas_thread  # noqa: E402
+
+single_blas_thread()  # before numpy
 
 import numpy as np  # noqa: E402
 

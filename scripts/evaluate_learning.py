@@ -36,7 +36,9 @@ import statistics
 import sys
 from pathlib import Path
 
-os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+from sela_ros import single_blas_thread  # noqa: E402
+
+single_blas_thread()  # before numpy
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'scripts'))

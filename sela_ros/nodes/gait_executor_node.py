@@ -391,16 +391,16 @@ class ClockCheck:
 
     def __init__(self, odometry_topic, imu_topic=''):
         self.topics = [t for t in (odometry_topic, imu_topic) if t]
-        self.last = {}  # topic: newest (wall, stamp)
+        self.last = {}  # topic: newest stamp
         self.back = {t: deque(maxlen=2) for t in self.topics}  # (wall, seconds back)
 
     def seen(self, topic, wall, stamp):
         """Record a message; the seconds its stamp went back, or None."""
         previous = self.last.get(topic)
-        self.last[topic] = (wall, stamp)
-        if previous is None or stamp >= previous[1] - STAMP_EPS:
+        self.last[topic] = stamp
+        if previous is None or stamp >= previous - STAMP_EPS:
             return None
-        back = previous[1] - stamp
+        back = previous - stamp
         self.back[topic].append((wall, back))
         return back
 
@@ -413,7 +413,7 @@ class ClockCheck:
                         f'(by {max(b for _, b in jumps):.3f} s): two publishers on different '
                         'clocks?')
         if len(self.topics) == 2 and all(t in self.last for t in self.topics):
-            (_, odom), (_, imu) = (self.last[t] for t in self.topics)
+            odom, imu = (self.last[t] for t in self.topics)
             if abs(odom - imu) > gait_duration:
                 return (f'the stamps on {self.topics[0]} ({odom:.3f} s) and {self.topics[1]} '
                         f'({imu:.3f} s) are {abs(odom - imu):.3f} s apart, more than a gait: '

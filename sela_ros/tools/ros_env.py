@@ -44,9 +44,6 @@ def ros_environment(domain_id=None, base=None):
             raise ValueError(f'ROS_DOMAIN_ID must be in [0, 101], got {domain_id}')
         env['ROS_DOMAIN_ID'] = str(domain_id)
     env.setdefault('PYTHONUNBUFFERED', '1')
-    # One BLAS thread: the GP step is memory-bound and threads fight the simulator for cores
-    # (measured: 8 ms vs 20 ms per step at 1e5 behaviours on 2 cores).
-    env.setdefault('OPENBLAS_NUM_THREADS', '1')
     return env
 
 
