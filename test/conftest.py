@@ -94,6 +94,15 @@ def pytest_report_header(config):
     return lines
 
 
+@pytest.fixture(scope='session', autouse=True)
+def node_log_root(tmp_path_factory):
+    """The node processes' logs and state files go under this run's pytest temporary folder,
+    which pytest removes after a few more runs (test/dds/ros_graph.py reads the variable)."""
+    root = tmp_path_factory.mktemp('nodes')
+    os.environ['SELA_TEST_NODE_LOGS'] = str(root)
+    return root
+
+
 @pytest.fixture
 def ros_env():
     """Environment for a child process that talks DDS in this test run's domain."""

@@ -39,7 +39,10 @@ class NodeProcesses:
                                                'sela_adapter'), namespace='',
                  params_files=(CONFIG,)):
         self.env = ros_environment(domain_id=int(os.environ['ROS_DOMAIN_ID']))
-        self.logdir = Path(tempfile.mkdtemp(prefix='sela_nodes_'))
+        # Under the test run's own temporary folder (conftest.py): pytest keeps the last few
+        # runs' node logs to read after a failure and removes older ones.
+        self.logdir = Path(tempfile.mkdtemp(prefix='sela_nodes_',
+                                            dir=os.environ.get('SELA_TEST_NODE_LOGS')))
         self.procs = {}
         self.namespace = namespace
         self.params_files = tuple(params_files)
