@@ -159,11 +159,16 @@ class PlannerNode(Node):
         self._report(DiagnosticStatus.OK, message)
         self._prepare_goal()
 
-    def _prepare_goal(self):
+    def _prepare_goal(self, replan=True):
+        """Build the current goal's field on the map in use; with ``replan``, where the
+        robot's pose is known, plan to the goal again and publish the path: a client watching
+        ``path`` sees the route on the new map, not one through what is now a wall."""
         if self.goal is None:
             return
         try:
             self.planner.field(self.goal)  # paid now, not by the next step
+            if replan and self.pose is not None and self._goal_stamp is None:
+                self._plan(self.pose[:2], self.goal, self.get_clock().now().to_msg())
         except PlanningError as exc:
             self._report(DiagnosticStatus.ERROR, f'current goal not reachable on the new map '
                          f'or inflation: {exc}')
@@ -253,7 +258,7 @@ class PlannerNode(Node):
             return
         self.goal = goal
         self.get_logger().info(f'goal ({goal[0]:.2f}, {goal[1]:.2f})')
-        self._prepare_goal()
+        self._prepare_goal(replan=False)
         if self.pose is None:
             self._goal_stamp = msg.header.stamp
         else:

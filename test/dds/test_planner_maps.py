@@ -203,3 +203,44 @@ def test_a_goal_sent_before_any_odometry_is_planned_when_the_first_pose_comes(pl
     path = conv.path_from_msg(next(p for p in watch.paths if p.header.stamp == goal_stamp))
     assert np.allclose(path[0], start[:2]) and np.allclose(path[-1], goal)
     assert all(nodes.alive().values()), nodes.logs()
+
+
+def test_a_new_map_replans_the_current_goal_and_publishes_its_path(planner):
+    """A map that arrives during a mission (a wall seen) gives the current goal a new path
+    at once, free on the new map: nobody has to ask for it."""
+    nodes, watch = planner
+    client = watch.client
+    goal, start = (2.5, 0.0), (0.0, 0.0, 0.0)
+    field = grid_from_description(0.1, (-1.0, -1.0), 4.0, 3.0, [])
+    walled = grid_from_description(0.1, (-1.0, -1.0), 4.0, 3.0, [1.5, -1.0, 1.7, 1.0])
+    map_pub = client.node.create_publisher(OccupancyGrid, '/map', LATCHED_QOS)
+    map_pub.publish(grids.occupancy_grid_to_msg(field.occupied, 0.1, (-1.0, -1.0),
+                                               frame_id='map'))
+    client.spin_until(lambda: watch.maps and watch.map_grid()[0].shape == (30, 40), 60,
+                      'the open field in use')
+    odom_pub = client.node.create_publisher(Odometry, '/hexapod/odom', STATE_QOS)
+    goal_pub = client.node.create_publisher(PoseStamped, '/goal_pose', GOAL_QOS)
+    client.spin_until(lambda: goal_pub.get_subscription_count() >= 1
+                      and odom_pub.get_subscription_count() >= 1, 60, 'the planner')
+    goal_stamp = conv.time_to_msg(7.0)
+
+    def straight_path():
+        odom_pub.publish(conv.odometry_msg(start, stamp=8.0))
+        goal_pub.publish(conv.pose_stamped(goal, stamp=7.0))
+        return any(p.header.stamp == goal_stamp for p in watch.paths)
+    client.spin_until(straight_path, 60, "the goal's path on the open field")
+    first = conv.path_from_msg(next(p for p in watch.paths if p.header.stamp == goal_stamp))
+    assert not _segments_free(walled, first)  # straight through where the wall will be
+    count = len(watch.paths)
+
+    map_pub.publish(grids.occupancy_grid_to_msg(walled.occupied, 0.1, (-1.0, -1.0),
+                                               frame_id='map'))
+    # (Paths of the goals sent above may still come: the one around the wall is awaited.)
+    client.spin_until(lambda: any(_segments_free(walled, conv.path_from_msg(p))
+                                  for p in watch.paths[count:]), 60,
+                      "the goal's path on the new map")
+    path = next(conv.path_from_msg(p) for p in watch.paths[count:]
+                if _segments_free(walled, conv.path_from_msg(p)))
+    assert np.allclose(path[0], start[:2], atol=0.1) and np.allclose(path[-1], goal)
+    assert path[:, 1].max() > 1.0  # around the wall's end
+    assert all(nodes.alive().values()), nodes.logs()
