@@ -64,13 +64,17 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import NamedTuple
 
+#: The repository this script is in: its sela_ros is the one run (and, through the workers'
+#: pool, the one each worker runs), not a copy installed elsewhere.
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
 from sela_ros import single_blas_thread  # noqa: E402
 
 single_blas_thread()  # before numpy
 
 import numpy as np  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
 SINGLE_LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right',
                'rear_right')
 #: (case, damage, whether its own table is left out of the priors).
@@ -770,7 +774,6 @@ def main(argv=None):
     parser.add_argument('--report-only', action='store_true',
                         help='run nothing: print the tables of the runs in --out')
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(ROOT))
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.storage import default_archive_path, load_archive
 

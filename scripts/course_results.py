@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # this repository's sela_ros, not a copy installed elsewhere
 DOC = ROOT / 'docs' / 'course_results.md'
 
 

@@ -36,13 +36,13 @@ import statistics
 import sys
 from pathlib import Path
 
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / 'scripts'))
+sys.path.insert(0, str(ROOT))  # this repository's sela_ros, not a copy installed elsewhere
+
 from sela_ros import single_blas_thread  # noqa: E402
 
 single_blas_thread()  # before numpy
-
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / 'scripts'))
-sys.path.insert(0, str(ROOT))
 
 import compare_priors  # noqa: E402
 
