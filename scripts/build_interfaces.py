@@ -8,11 +8,12 @@ requirements.txt). This script builds, from the definitions in ``scripts/interfa
 the part of each package that sela_ros uses:
 
 * ``tf2_msgs``: ``msg/TFMessage`` (``/tf``);
-* ``nav2_msgs``: ``action/NavigateToPose``, ``action/FollowWaypoints`` and the
-  ``msg/MissedWaypoint`` it refers to (the adapter's action servers).
+* ``nav2_msgs``: ``action/NavigateToPose``, ``action/NavigateThroughPoses``,
+  ``action/FollowWaypoints`` and the ``msg/MissedWaypoint`` it refers to (the adapter's
+  action servers), ``action/ComputePathToPose`` (the planner's).
 
-The definitions are ROS Jazzy's, word for word, so that each type is the same on the wire as
-a ROS install's: same name, same type hash. Each package is built with CMake exactly as
+The definitions are ROS Jazzy's, field for field, so that each type is the same on the wire
+as a ROS install's: same name, same type hash. Each package is built with CMake exactly as
 colcon would, installing the C type supports and the Python bindings into the prefix.
 
 Run by ``make venv``; a package whose build in the prefix is up to date is skipped (a stamp
@@ -50,9 +51,11 @@ PACKAGES = (
     Package('tf2_msgs', '0.36.0', 'BSD-3-Clause', ('geometry_msgs',),
             'from tf2_msgs.msg import TFMessage; TFMessage()'),
     Package('nav2_msgs', '1.3.0', 'Apache-2.0',
-            ('builtin_interfaces', 'geometry_msgs', 'std_msgs', 'action_msgs'),
-            'from nav2_msgs.action import FollowWaypoints, NavigateToPose; '
-            'NavigateToPose.Goal(); FollowWaypoints.Result()'),
+            ('builtin_interfaces', 'geometry_msgs', 'nav_msgs', 'std_msgs', 'action_msgs'),
+            'from nav2_msgs.action import (ComputePathToPose, FollowWaypoints, '
+            'NavigateThroughPoses, NavigateToPose); NavigateToPose.Goal(); '
+            'FollowWaypoints.Result(); NavigateThroughPoses.Feedback(); '
+            'ComputePathToPose.Result()'),
 )
 
 PACKAGE_XML = """<?xml version="1.0"?>

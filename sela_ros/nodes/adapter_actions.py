@@ -1,4 +1,5 @@
-"""The ``sela_adapter``'s missions as nav2's actions: ``navigate_to_pose`` (NavigateToPose) and
+"""The ``sela_adapter``'s missions as nav2's actions: ``navigate_to_pose`` (NavigateToPose),
+``navigate_through_poses`` (NavigateThroughPoses: the poses visited in order, one mission) and
 ``follow_waypoints`` (FollowWaypoints), with nav2 Jazzy's types.
 
 A goal becomes the same stepper event as a goal on ``goal_pose`` or ``goal_path``
@@ -41,7 +42,7 @@ class Binding:
     action: ifc.Action
     goals: list  # [(x, y), ...] in the odom frame, in order
     poses: list  # the goal's PoseStamped, for missed waypoints
-    first_index: int  # FollowWaypoints: the rank in ``poses`` of goals[0]
+    first_index: int  # FollowWaypoints: the rank in ``poses`` of goals[0] (else 0)
     started: float  # the node's clock (s): sim time under use_sim_time, as nav2's
     ended: Future = field(default_factory=Future)  # resolved with the MissionEnded
     start_distance: float = None
@@ -55,6 +56,9 @@ SERVICE_DEPTH = 1000
 MAX_ACTIVE_GOALS = 200
 #: Ends of missions not (yet) bound to a goal that are kept (topic goals' ones age out).
 UNBOUND_KEPT = 16
+#: At most this far (s) ahead of the node's clock an outcome's stamp is taken as the time of
+#: its feedback (the clock's messages late); further, the clocks differ and the node's wins.
+CLOCK_LAG = 10.0
 _SERVICE_QOS = QoSProfile(depth=SERVICE_DEPTH, history=HistoryPolicy.KEEP_LAST,
                           reliability=ReliabilityPolicy.RELIABLE)
 
@@ -70,6 +74,12 @@ def _duration(seconds):
     return Duration(sec=sec, nanosec=min(999_999_999, int(round((seconds - sec) * 1e9))))
 
 
+def _legs(goals, index):
+    """The length of the way from ``goals[index]`` through the goals after it, in order."""
+    return sum(math.hypot(b[0] - a[0], b[1] - a[1])
+               for a, b in zip(goals[index:], goals[index + 1:]))
+
+
 def goal_id_text(handle):
     """A goal handle's id as the hex text statuses carry (``goal_id``)."""
     return bytes(handle.goal_id.uuid).hex()
@@ -77,13 +87,16 @@ def goal_id_text(handle):
 
 def goal_count(request):
     """How many waypoints a FollowWaypoints ``request`` makes (``goal_index`` on, then
-    ``number_of_loops`` more rounds), without expanding them."""
+    ``number_of_loops`` more rounds), without expanding them; a NavigateThroughPoses one,
+    its poses."""
     poses = len(request.poses)
+    if not hasattr(request, 'goal_index'):
+        return poses
     return max(0, poses - int(request.goal_index)) + poses * int(request.number_of_loops)
 
 
 class MissionActions:
-    """The two action servers of ``node`` (a :class:`~sela_ros.nodes.adapter_node.
+    """The action servers of ``node`` (a :class:`~sela_ros.nodes.adapter_node.
     SelaAdapter`), and which goal each mission belongs to."""
 
     def __init__(self, node):
@@ -127,6 +140,9 @@ class MissionActions:
         if hasattr(request, 'poses'):
             count = goal_count(request)
             limit = self.node.values['max_waypoints']
+            if count > limit and not hasattr(request, 'goal_index'):
+                return (f'navigate_through_poses: {count} poses, more than max_waypoints '
+                        f'{limit}')
             if count > limit:
                 return (f'follow_waypoints: {len(request.poses)} pose(s) from goal_index '
                         f'{request.goal_index} and {request.number_of_loops} more loop(s) '
@@ -209,8 +225,7 @@ class MissionActions:
         return self._result(binding, ended)
 
     def _action_of(self, handle):
-        return (ifc.FOLLOW_WAYPOINTS if hasattr(handle.request, 'poses')
-                else ifc.NAVIGATE_TO_POSE)
+        return next(a for a in ifc.ACTIONS if isinstance(handle.request, a.type.Goal))
 
     def _goals_of(self, action, request):
         """The mission's goals in the odom frame, the poses as sent and the rank of the first
@@ -222,7 +237,7 @@ class MissionActions:
         poses = list(request.poses)
         if not poses:
             raise conv.MessageError('the goal has no poses')
-        first = int(request.goal_index)
+        first = int(getattr(request, 'goal_index', 0))
         if first >= len(poses):
             raise conv.MessageError(f'goal_index {first} is past the '
                                     f'{len(poses)} poses')
@@ -230,7 +245,8 @@ class MissionActions:
         path.header.frame_id = poses[0].header.frame_id
         # Checked once; the loops repeat the goals, bounded by max_waypoints (_refusal).
         once = list(conv.goals_from_path(path, frame))
-        return once[first:] + once * int(request.number_of_loops), poses, first
+        loops = int(getattr(request, 'number_of_loops', 0))
+        return once[first:] + once * loops, poses, first
 
     def _problem(self, goals):
         """``(index, error_code, why)`` of the first goal the map rules out, or None."""
@@ -265,16 +281,23 @@ class MissionActions:
         if pose is None:
             return
         pose = vector_from_text(pose)
-        goal = binding.goals[min(max(0, index), len(binding.goals) - 1)]
-        left = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+        goal_index = min(max(0, index), len(binding.goals) - 1)
+        goal = binding.goals[goal_index]
+        # The rest of the way: to the goal walked to, then from each goal to the next.
+        left = math.hypot(goal[0] - pose[0], goal[1] - pose[1]) + _legs(binding.goals,
+                                                                          goal_index)
         if binding.start_distance is None:
             start = vector_from_text(values['pose']) if 'pose' in values else pose
-            binding.start_distance = math.hypot(goal[0] - start[0], goal[1] - start[1])
-        now = self.node.get_clock().now()
-        elapsed = _seconds(now) - binding.started
+            binding.start_distance = math.hypot(goal[0] - start[0], goal[1] - start[1]) \
+                + _legs(binding.goals, goal_index)
+        now = self._feedback_time()
+        elapsed = now - binding.started
         progress = binding.start_distance - left
-        feedback = ifc.NAVIGATE_TO_POSE.type.Feedback(
-            current_pose=conv.pose_stamped(pose[:2], pose[2], stamp=now.to_msg(),
+        extra = {}
+        if binding.action is ifc.NAVIGATE_THROUGH_POSES:
+            extra['number_of_poses_remaining'] = min(32767, len(binding.goals) - goal_index)
+        feedback = binding.action.type.Feedback(
+            current_pose=conv.pose_stamped(pose[:2], pose[2], stamp=now,
                                            frame_id=self.node.frame_id),
             navigation_time=_duration(elapsed),
             estimated_time_remaining=_duration(elapsed * left / progress
@@ -282,8 +305,18 @@ class MissionActions:
             # SELA's recoveries: adaptations (re)started, and falls it got up from.
             number_of_recoveries=min(32767, int(values.get('adaptations', 0))
                                      + int(values.get('failed_steps', 0))),
-            distance_remaining=float(left))
+            distance_remaining=float(left), **extra)
         binding.handle.publish_feedback(feedback)
+
+    def _feedback_time(self):
+        """The node's clock (s), or the latest outcome's stamp where the clock has not caught
+        up with it yet: the simulator's ``clock`` and its outcomes travel apart, and a gait's
+        feedback must not say that no time has passed since its goal."""
+        seconds = _seconds(self.node.get_clock().now())
+        stamp = getattr(self.node.stepper, 'pose_stamp', None)
+        if stamp is not None and seconds < stamp <= seconds + CLOCK_LAG:
+            return stamp
+        return seconds
 
     def _rank(self, binding, index):
         """The rank in the goal's ``poses`` of the mission's goal ``index`` (from 0)."""

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
@@ -243,4 +244,69 @@ def test_a_new_map_replans_the_current_goal_and_publishes_its_path(planner):
                 if _segments_free(walled, conv.path_from_msg(p)))
     assert np.allclose(path[0], start[:2], atol=0.1) and np.allclose(path[-1], goal)
     assert path[:, 1].max() > 1.0  # around the wall's end
+    assert all(nodes.alive().values()), nodes.logs()
+
+
+def test_compute_path_to_pose_answers_as_nav2s_planner_server(planner):
+    """nav2's ComputePathToPose (BasicNavigator.getPath): the path, or the code saying why."""
+    from rclpy.action import ActionClient
+
+    from sela_ros.nodes import interface as ifc
+
+    nodes, watch = planner
+    client = watch.client
+    action = ifc.COMPUTE_PATH_TO_POSE.type
+    compute = ActionClient(client.node, action, ifc.COMPUTE_PATH_TO_POSE.root_name)
+    client.spin_until(compute.server_is_ready, 60, 'compute_path_to_pose')
+    maze = load_map_file(MAPS / 'maze.yaml')
+
+    def ask(goal, start=None, planner_id='', frame_id='odom'):
+        request = action.Goal(goal=conv.pose_stamped(goal, frame_id=frame_id),
+                              planner_id=planner_id, use_start=start is not None)
+        if start is not None:
+            request.start = conv.pose_stamped(start, frame_id=frame_id)
+        sent = compute.send_goal_async(request)
+        client.spin_until(sent.done, 30, 'the goal response')
+        assert sent.result().accepted
+        done = sent.result().get_result_async()
+        client.spin_until(done.done, 30, 'the result')
+        return done.result()
+
+    answer = ask((4.5, 4.5), start=(0.0, 0.0))
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED and answer.result.error_code == 0
+    path = conv.path_from_msg(answer.result.path)
+    assert np.allclose(path[0], (0.0, 0.0)) and np.allclose(path[-1], (4.5, 4.5))
+    assert _segments_free(maze, path) and len(path) > 3
+    assert answer.result.path.header.frame_id == 'odom'
+    wall = next(maze.cell_to_world((ix, iy)) for iy, ix in np.argwhere(maze.occupied)
+                if maze.in_map(maze.cell_to_world((ix, iy))))
+    for kwargs, code, words in (
+            ({'goal': (4.5, 4.5)}, action.Result.UNKNOWN, 'no odometry yet'),
+            ({'goal': (50.0, 0.0), 'start': (0.0, 0.0)}, action.Result.GOAL_OUTSIDE_MAP,
+             'off the map'),
+            ({'goal': tuple(wall), 'start': (0.0, 0.0)}, action.Result.GOAL_OCCUPIED,
+             'inside an obstacle'),
+            ({'goal': (4.5, 4.5), 'start': (-50.0, 0.0)}, action.Result.START_OUTSIDE_MAP,
+             'off the map'),
+            ({'goal': (4.5, 4.5), 'start': (0.0, 0.0), 'frame_id': 'map'},
+             action.Result.TF_ERROR, "frame 'map'"),
+            ({'goal': (4.5, 4.5), 'start': (0.0, 0.0), 'planner_id': 'Smac'},
+             action.Result.INVALID_PLANNER, "'Smac'")):
+        answer = ask(**kwargs)
+        assert answer.status == GoalStatus.STATUS_ABORTED, (kwargs, answer.result)
+        assert answer.result.error_code == code, (kwargs, answer.result)
+        assert words in answer.result.error_msg, (kwargs, answer.result.error_msg)
+        assert not answer.result.path.poses
+
+    # use_start false: from the robot's pose (its odometry).
+    odom_pub = client.node.create_publisher(Odometry, '/hexapod/odom', STATE_QOS)
+    sent = []
+
+    def from_the_robot():
+        odom_pub.publish(conv.odometry_msg((0.5, 0.5, 0.0), stamp=3.0))
+        sent.append(1)
+        return len(sent) > 1 and ask((4.5, 4.5)).status == GoalStatus.STATUS_SUCCEEDED
+    client.spin_until(from_the_robot, 60, 'a path from the odometry pose')
+    path = conv.path_from_msg(ask((4.5, 4.5), planner_id='GridBased').result.path)
+    assert np.allclose(path[0], (0.5, 0.5)) and np.allclose(path[-1], (4.5, 4.5))
     assert all(nodes.alive().values()), nodes.logs()

@@ -1,5 +1,6 @@
-"""Missions as nav2's actions, over DDS: ``navigate_to_pose`` and ``follow_waypoints`` of the
-adapter, driven by plain rclpy ``ActionClient``s, in the root namespace and under one.
+"""Missions as nav2's actions, over DDS: ``navigate_to_pose``, ``navigate_through_poses`` and
+``follow_waypoints`` of the adapter, driven by plain rclpy ``ActionClient``s, in the root
+namespace and under one.
 
 Short missions on the intact robot (goals ~0.5 m from where it stands); every wait is on a
 condition, with a timeout.
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticStatus
-from nav2_msgs.action import FollowWaypoints, NavigateToPose
+from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
@@ -32,6 +33,7 @@ class ActionUser:
         node = client.node
         self.navigate = ifc.action_client(node, ifc.NAVIGATE_TO_POSE, namespace)
         self.follow = ifc.action_client(node, ifc.FOLLOW_WAYPOINTS, namespace)
+        self.through = ifc.action_client(node, ifc.NAVIGATE_THROUGH_POSES, namespace)
         self.gaits, self.statuses, self.errors, self.pose, self.stamp = [], [], [], None, None
         def name(relative):
             return f'{namespace}/{relative}' if namespace else relative
@@ -55,7 +57,8 @@ class ActionUser:
 
     def ready(self):
         self.client.spin_until(lambda: self.navigate.server_is_ready()
-                               and self.follow.server_is_ready() and self.pose is not None,
+                               and self.follow.server_is_ready()
+                               and self.through.server_is_ready() and self.pose is not None,
                                90, 'the action servers and odometry')
         # The adapter takes goals once it knows the robot's pose and the planner's map.
         self.client.spin_until(lambda: self.pose is not None, 30, 'odometry')
@@ -258,3 +261,48 @@ def test_follow_waypoints_reaches_every_waypoint_in_order(stack):
 
 def conv_vector(text):
     return [float(v) for v in text.split()]
+
+
+def test_navigate_through_poses_reaches_each_pose_in_order_with_what_is_left(stack):
+    """nav2's NavigateThroughPoses (BasicNavigator.goThroughPoses): one mission through the
+    poses; each feedback says how many poses are left and how far it is through them."""
+    nodes, user = stack
+    poses = [user.goal_ahead(*d) for d in ((0.4, 0.0), (0.4, 0.4))]
+    feedback = []
+    seen = len(user.statuses)
+    handle = user.send(user.through, NavigateThroughPoses.Goal(poses=poses), feedback)
+    assert handle.accepted
+    answer = user.result(handle)
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED, (answer.result, nodes.logs())
+    assert answer.result.error_code == 0
+    mission = _mission_of(user, handle)
+    user.said_end(mission)
+    reached = [s for s in user.statuses[seen:]
+               if s.get('mission') == mission and 'goal_reached' in s]
+    xy = [(p.pose.position.x, p.pose.position.y) for p in poses]
+    assert [int(s['goal_index']) for s in reached] == [2]
+    assert np.allclose(conv_vector(reached[0]['goal_reached']), xy[0], atol=1e-6)
+    assert math.dist(conv_vector(user.steps_of(mission)[-1]['end_pose'])[:2], xy[1]) <= EPS
+    left = [f.number_of_poses_remaining for f in feedback]
+    print(f'navigate_through_poses: poses remaining {left}, distances '
+          f'{[round(f.distance_remaining, 2) for f in feedback]}')
+    assert left == sorted(left, reverse=True) and set(left) <= {1, 2} and left[-1] == 1, left
+    for f in feedback:  # to the pose walked to, then on through the ones after it
+        pose = (f.current_pose.pose.position.x, f.current_pose.pose.position.y)
+        rest = 0.4 if f.number_of_poses_remaining == 2 else 0.0
+        target = xy[len(xy) - f.number_of_poses_remaining]
+        assert f.distance_remaining == pytest.approx(math.dist(pose, target) + rest, abs=1e-3)
+
+
+def test_navigate_through_poses_with_a_pose_off_the_map_is_aborted_with_the_code(stack):
+    nodes, user = stack
+    poses = [user.goal_ahead(0.3, 0.0), conv.pose_stamped((40.0, 0.0), frame_id='odom')]
+    gaits_before = len(user.gaits)
+    handle = user.send(user.through, NavigateThroughPoses.Goal(poses=poses), [])
+    answer = user.result(handle)
+    assert answer.status == GoalStatus.STATUS_ABORTED, (answer.result, nodes.logs())
+    if answer.result.error_code == ifc.GOAL_OUTSIDE_MAP:  # the adapter knew the map
+        assert 'off the map' in answer.result.error_msg, answer.result.error_msg
+        assert len(user.gaits) == gaits_before  # refused before any gait
+    else:  # not yet: the planner found no path to it, once the first pose was reached
+        assert answer.result.error_code == ifc.NO_VALID_PATH, answer.result

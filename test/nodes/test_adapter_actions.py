@@ -95,3 +95,60 @@ def test_a_goal_of_a_million_loops_is_refused_without_expanding_it(actions):
                                                  number_of_loops=999)) is None
     actions.active = 200
     assert 'accepted goals have not ended yet' in actions._refusal(NavigateToPose.Goal())
+
+
+class _Handle:
+    def __init__(self):
+        self.is_active, self.sent = True, []
+
+    def publish_feedback(self, feedback):
+        self.sent.append(feedback)
+
+
+class _Clock:
+    def __init__(self, seconds):
+        self.seconds = seconds
+
+    def now(self):
+        return SimpleNamespace(nanoseconds=int(self.seconds * 1e9))
+
+
+def _bound(actions, action, goals, clock, stamp):
+    from sela_ros.nodes.adapter_actions import Binding
+
+    actions.node = SimpleNamespace(frame_id='odom', map=None, get_clock=lambda: clock,
+                                   stepper=SimpleNamespace(pose_stamp=stamp))
+    handle = _Handle()
+    actions.bindings = {7: Binding(handle, action, goals, _poses(*goals), 0, 100.0)}
+    return handle
+
+
+def test_navigate_through_poses_is_one_mission_and_its_feedback_says_what_is_left(actions):
+    from nav2_msgs.action import NavigateThroughPoses
+
+    goal = NavigateThroughPoses.Goal(poses=_poses((1, 0), (1, 1), (0, 1)))
+    goals, _, first = actions._goals_of(ifc.NAVIGATE_THROUGH_POSES, goal)
+    assert goals == [(1, 0), (1, 1), (0, 1)] and first == 0 and goal_count(goal) == 3
+    handle = _bound(actions, ifc.NAVIGATE_THROUGH_POSES, goals, _Clock(102.0), 101.0)
+    actions.status_released({'mission': '7', 'goal_index': '2', 'end_pose': '1.0 0.2 0.0',
+                             'pose': '0.0 0.0 0.0'})
+    sent = handle.sent[-1]
+    assert sent.number_of_poses_remaining == 2
+    assert sent.distance_remaining == pytest.approx(0.8 + 1.0)  # to (1, 1), then to (0, 1)
+    assert sent.navigation_time.sec == 2
+    result = actions._message(ifc.NAVIGATE_THROUGH_POSES, ifc.NO_VALID_PATH, 'no path', [])
+    assert (result.error_code, result.error_msg) == (208, 'no path')
+
+
+def test_a_feedback_is_timed_by_its_outcome_when_the_clock_lags_behind_it(actions):
+    """The simulator's clock and its outcomes travel apart: a gait's feedback says the time
+    its outcome was stamped at, not that none has passed since the goal."""
+    handle = _bound(actions, ifc.NAVIGATE_TO_POSE, [(1.0, 0.0)], _Clock(100.0), 103.5)
+    actions.status_released({'mission': '7', 'goal_index': '1', 'end_pose': '0.5 0.0 0.0'})
+    sent = handle.sent[-1]
+    assert sent.navigation_time.sec == 3 and sent.navigation_time.nanosec == 500_000_000
+    assert sent.current_pose.header.stamp.sec == 103
+    # An outcome stamped on another clock (far ahead) does not take over the node's.
+    handle = _bound(actions, ifc.NAVIGATE_TO_POSE, [(1.0, 0.0)], _Clock(104.0), 1e9)
+    actions.status_released({'mission': '7', 'goal_index': '1', 'end_pose': '0.5 0.0 0.0'})
+    assert handle.sent[-1].navigation_time.sec == 4

@@ -11,12 +11,13 @@ ADDED = {'/hexapod/joint_states', '/planner/map', '/sela/prediction',
          '/damage_detector/verdict', '/sela_adapter/clear', '/sela/markers',
          '/map', '/goal_path',  # map_server's map for the planner; a mission of many goals
          '/sim_bridge/alive', '/planner/alive', '/damage_detector/alive',
-         '/sela_adapter/alive'}  # liveness from the middleware (QoS liveliness)
+         '/sela_adapter/alive',  # liveness from the middleware (QoS liveliness)
+         '/navigate_through_poses', '/compute_path_to_pose'}  # nav2's, as nav2 names them
 
 
 def test_root_names_are_the_design_ones():
     names = ({t.root_name for t in ifc.TOPICS} | {s.root_name for s in ifc.SERVICES}
-             | {a.root_name for a in ifc.ACTIONS})
+             | {a.root_name for a in ifc.ACTIONS + ifc.PLANNER_ACTIONS})
     assert names == DESIGN | ADDED
 
 
@@ -29,8 +30,11 @@ def test_names_are_relative_so_a_namespace_moves_the_stack():
     assert ifc.PATH.own_name == '~/path' and ifc.VERDICT.own_name == '~/verdict'
     assert ifc.GOAL.own_name == 'goal_pose'  # a shared topic: the same name for everyone
     for action in ifc.ACTIONS:  # nav2's names, in the adapter's namespace (not ~/)
-        assert action.name in ('navigate_to_pose', 'follow_waypoints')
+        assert action.name in ('navigate_to_pose', 'navigate_through_poses',
+                               'follow_waypoints')
         assert action.owner == ifc.SELA_ADAPTER
+    assert [(a.name, a.owner) for a in ifc.PLANNER_ACTIONS] == [('compute_path_to_pose',
+                                                                 ifc.PLANNER)]
 
 
 def test_the_actions_are_nav2s_types():
@@ -48,6 +52,33 @@ def test_the_actions_are_nav2s_types():
         'poses': 'sequence<geometry_msgs/PoseStamped>'}
     assert set(FollowWaypoints.Result.get_fields_and_field_types()) == {
         'missed_waypoints', 'error_code', 'error_msg'}
+
+
+def test_the_added_actions_are_nav2_jazzys_types_field_for_field():
+    """The type hash a ROS install checks is over the fields' names and types, in order."""
+    from nav2_msgs.action import ComputePathToPose, NavigateThroughPoses
+
+    assert ifc.NAVIGATE_THROUGH_POSES.type is NavigateThroughPoses
+    assert ifc.COMPUTE_PATH_TO_POSE.type is ComputePathToPose
+    assert list(NavigateThroughPoses.Goal.get_fields_and_field_types().items()) == [
+        ('poses', 'sequence<geometry_msgs/PoseStamped>'), ('behavior_tree', 'string')]
+    assert list(NavigateThroughPoses.Result.get_fields_and_field_types().items()) == [
+        ('error_code', 'uint16'), ('error_msg', 'string')]
+    assert list(NavigateThroughPoses.Feedback.get_fields_and_field_types().items()) == [
+        ('current_pose', 'geometry_msgs/PoseStamped'),
+        ('navigation_time', 'builtin_interfaces/Duration'),
+        ('estimated_time_remaining', 'builtin_interfaces/Duration'),
+        ('number_of_recoveries', 'int16'), ('distance_remaining', 'float'),
+        ('number_of_poses_remaining', 'int16')]
+    assert list(ComputePathToPose.Goal.get_fields_and_field_types().items()) == [
+        ('goal', 'geometry_msgs/PoseStamped'), ('start', 'geometry_msgs/PoseStamped'),
+        ('planner_id', 'string'), ('use_start', 'boolean')]
+    assert list(ComputePathToPose.Result.get_fields_and_field_types().items()) == [
+        ('path', 'nav_msgs/Path'), ('planning_time', 'builtin_interfaces/Duration'),
+        ('error_code', 'uint16'), ('error_msg', 'string')]
+    assert (ComputePathToPose.Result.START_OUTSIDE_MAP, ComputePathToPose.Result.GOAL_OUTSIDE_MAP,
+            ComputePathToPose.Result.GOAL_OCCUPIED, ComputePathToPose.Result.NO_VALID_PATH) \
+        == (203, ifc.GOAL_OUTSIDE_MAP, ifc.GOAL_OCCUPIED, ifc.NO_VALID_PATH)
 
 
 def test_what_a_decision_depends_on_is_reliable_and_kept_for_late_joiners():
