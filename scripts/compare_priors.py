@@ -25,6 +25,7 @@ fallen robot righted where it lies. Methods:
 * ``aprol-<r>``: ``caution`` with each gait scored by its chance of landing within ``r`` m of
   the waypoint (``acquisition.reach``); ``affine-0.5-aprol-<r>``: the same with
   ``gp.mean.affine`` 0.5;
+* ``alpha-0.0``: ``caution`` with no UCB bonus (``acquisition.ucb.alpha`` 0);
 * ``none``: the intact map only (``--priors none``);
 * ``library-select``, ``library``: one table chosen, or the tables mixed, from a damage
   library (``--library``, ``scripts/build_library.py``), each damage foreseen by no table
@@ -112,6 +113,8 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            'bound-fit-signed': None,
            'caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                        'gp.mean.affine': 'none'},
+           'alpha-0.0': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                         'gp.mean.affine': 'none', 'acquisition.ucb.alpha': 0.0},
            **{f'caution-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': v,
                                'gp.mean.affine': 'none'}
               for v in (0.1, 0.2, 0.3)},
@@ -348,6 +351,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               reach_chance=settings.get('acquisition.reach', 'none'),
               horizon=settings.get('planner.horizon'), trace=args.trace,
               reach=settings.get('planner.reach', 'none'),
+              alpha=settings.get('acquisition.ucb.alpha'),
               **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in (*OWN_LIBRARY_METHODS, 'bound-own') else (
