@@ -10,7 +10,8 @@ the part of each package that sela_ros uses:
 * ``tf2_msgs``: ``msg/TFMessage`` (``/tf``);
 * ``nav2_msgs``: ``action/NavigateToPose``, ``action/NavigateThroughPoses``,
   ``action/FollowWaypoints`` and the ``msg/MissedWaypoint`` it refers to (the adapter's
-  action servers), ``action/ComputePathToPose`` (the planner's).
+  action servers), ``action/ComputePathToPose`` and ``action/ComputePathThroughPoses``
+  (the planner's).
 
 The definitions are ROS Jazzy's, field for field, so that each type is the same on the wire
 as a ROS install's: same name, same type hash. Each package is built with CMake exactly as
@@ -52,10 +53,10 @@ PACKAGES = (
             'from tf2_msgs.msg import TFMessage; TFMessage()'),
     Package('nav2_msgs', '1.3.0', 'Apache-2.0',
             ('builtin_interfaces', 'geometry_msgs', 'nav_msgs', 'std_msgs', 'action_msgs'),
-            'from nav2_msgs.action import (ComputePathToPose, FollowWaypoints, '
-            'NavigateThroughPoses, NavigateToPose); NavigateToPose.Goal(); '
+            'from nav2_msgs.action import (ComputePathThroughPoses, ComputePathToPose, '
+            'FollowWaypoints, NavigateThroughPoses, NavigateToPose); NavigateToPose.Goal(); '
             'FollowWaypoints.Result(); NavigateThroughPoses.Feedback(); '
-            'ComputePathToPose.Result()'),
+            'ComputePathToPose.Result(); ComputePathThroughPoses.Goal()'),
 )
 
 PACKAGE_XML = """<?xml version="1.0"?>

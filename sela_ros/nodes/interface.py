@@ -51,6 +51,7 @@ except ImportError:  # pragma: no cover - a prefix without tf2_msgs: no tf, said
     TFMessage = None
 # nav2's own action types (a ROS install's nav2_msgs; generated into the .venv by make venv).
 from nav2_msgs.action import (
+    ComputePathThroughPoses,
     ComputePathToPose,
     FollowWaypoints,
     NavigateThroughPoses,
@@ -202,7 +203,9 @@ FOLLOW_WAYPOINTS = Action('follow_waypoints', FollowWaypoints, SELA_ADAPTER)
 ACTIONS = (NAVIGATE_TO_POSE, NAVIGATE_THROUGH_POSES, FOLLOW_WAYPOINTS)
 # A path on request, as nav2's planner server serves it.
 COMPUTE_PATH_TO_POSE = Action('compute_path_to_pose', ComputePathToPose, PLANNER)
-PLANNER_ACTIONS = (COMPUTE_PATH_TO_POSE,)
+COMPUTE_PATH_THROUGH_POSES = Action('compute_path_through_poses', ComputePathThroughPoses,
+                                    PLANNER)
+PLANNER_ACTIONS = (COMPUTE_PATH_TO_POSE, COMPUTE_PATH_THROUGH_POSES)
 
 # ``error_code`` of a mission's result, by why it ended (nav2 numbers them per server: a goal
 # that cannot be planned gets its planner server's codes, ComputePathToPose's; a mission that

@@ -17,14 +17,17 @@ on ``diagnostics`` and the current one kept. The map in use is published, latche
 odometry, so a bad goal is reported as soon as it is sent; a goal sent before the first
 odometry is planned when it comes.
 
-Serves nav2's ``compute_path_to_pose`` action (ComputePathToPose, nav2 Jazzy's type, as nav2's
-planner server: ``BasicNavigator.getPath`` works): the path from ``start`` (``use_start``)
-or the robot's latest pose to ``goal``, with nav2's codes when there is none (203 start off
-the map, 204 goal off the map, 206 goal in an obstacle, 208 no path, 202 a frame other than
-the planning frame, 201 a ``planner_id`` other than '' or ``GridBased``).
+Serves nav2's ``compute_path_to_pose`` and ``compute_path_through_poses`` actions (nav2
+Jazzy's types, as nav2's planner server: ``BasicNavigator.getPath`` and
+``getPathThroughPoses`` work): the path from ``start`` (``use_start``) or the robot's latest
+pose to the goal, or through the goals in order, with nav2's codes when there is none (for
+ComputePathToPose 203 start off the map, 204 goal off the map, 206 goal in an obstacle, 208
+no path, 202 a frame other than the planning frame, 201 a ``planner_id`` other than '' or
+``GridBased``; ComputePathThroughPoses' are the same plus 100, and 309 no goals).
 """
 import time
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
@@ -52,7 +55,7 @@ from sela_ros.nodes.heartbeat import add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 
-#: The planner ids ``compute_path_to_pose`` answers to: nav2's default plugin name, or none.
+#: The planner ids the actions answer to: nav2's default plugin name, or none.
 PLANNER_IDS = ('', 'GridBased')
 
 __all__ = ['PlannerNode', 'grid_from_description', 'load_map_file', 'main']
@@ -125,8 +128,10 @@ class PlannerNode(Node):
         # map_server's topic and QoS: a map published before the planner started still comes.
         ifc.subscription(self, ifc.MAP_IN, self.map_callback)
         ifc.server(self, ifc.MAKE_PLAN, self.make_plan_callback)
-        self.path_action = ifc.action_server(self, ifc.COMPUTE_PATH_TO_POSE,
-                                             self.compute_path_callback)
+        self.path_actions = [
+            ifc.action_server(self, action,
+                              lambda handle, action=action: self.compute_path(action, handle))
+            for action in ifc.PLANNER_ACTIONS]
         self.add_post_set_parameters_callback(self.parameters_applied_callback)
         grid, source = self._initial_grid()
         add_heartbeat(self, problem=lambda: self.map_error)  # said at every beat until fixed
@@ -294,9 +299,10 @@ class PlannerNode(Node):
             response.plan.header.frame_id = self.frame_id
         return response
 
-    def compute_path_callback(self, handle):
-        """nav2's ComputePathToPose: the path, or an empty one and the code saying why."""
-        result = ifc.COMPUTE_PATH_TO_POSE.type.Result()
+    def compute_path(self, action, handle):
+        """nav2's ComputePathToPose or ComputePathThroughPoses (``action``): the path, or an
+        empty one and the code saying why."""
+        result = action.type.Result()
         begin = time.monotonic()
         try:
             result.path = self._requested_path(handle.request, result)
@@ -305,12 +311,12 @@ class PlannerNode(Node):
             result.error_code, result.error_msg = exc.code, str(exc)
             result.path = Path()
             result.path.header.frame_id = self.frame_id
-            self._report(DiagnosticStatus.ERROR, f'compute_path_to_pose: {exc}')
+            self._report(DiagnosticStatus.ERROR, f'{action.name}: {exc}')
             handle.abort()
         except Exception as exc:  # noqa: BLE001 - a client's goal must get its answer
             result.error_code = result.UNKNOWN
             result.error_msg = f'{type(exc).__name__}: {exc}'
-            self.get_logger().error(f'compute_path_to_pose failed: {result.error_msg}')
+            self.get_logger().error(f'{action.name} failed: {result.error_msg}')
             handle.abort()
         seconds = time.monotonic() - begin
         result.planning_time.sec = int(seconds)
@@ -321,8 +327,13 @@ class PlannerNode(Node):
         if request.planner_id not in PLANNER_IDS:
             raise _Refused(result.INVALID_PLANNER, f'planner_id {request.planner_id!r} is not '
                            f"served here; use '' or 'GridBased'")
+        through = hasattr(request, 'goals')
         try:
-            goal = conv.goal_from_pose_stamped(request.goal, self.frame_id, 'goal')
+            if through:
+                goals = [conv.goal_from_pose_stamped(g, self.frame_id, f'goals[{i}]')
+                         for i, g in enumerate(request.goals)]
+            else:
+                goals = [conv.goal_from_pose_stamped(request.goal, self.frame_id, 'goal')]
             if request.use_start:
                 start = conv.goal_from_pose_stamped(request.start, self.frame_id, 'start')
             elif self.pose is None:
@@ -333,18 +344,29 @@ class PlannerNode(Node):
         except conv.MessageError as exc:
             code = result.TF_ERROR if 'frame' in str(exc) else result.UNKNOWN
             raise _Refused(code, str(exc)) from None
-        problem = self.grid.goal_problem(goal)
-        if problem:
-            code = result.GOAL_OUTSIDE_MAP if not self.grid.in_map(goal) \
-                else result.GOAL_OCCUPIED
-            raise _Refused(code, f'goal ({goal[0]:.2f}, {goal[1]:.2f}) is {problem}')
+        if not goals:
+            raise _Refused(result.NO_VIAPOINTS_GIVEN, 'no goals given')
+        for goal in goals:
+            problem = self.grid.goal_problem(goal)
+            if problem:
+                code = result.GOAL_OUTSIDE_MAP if not self.grid.in_map(goal) \
+                    else result.GOAL_OCCUPIED
+                raise _Refused(code, f'goal ({goal[0]:.2f}, {goal[1]:.2f}) is {problem}')
         if not self.grid.in_map(start):
             raise _Refused(result.START_OUTSIDE_MAP, f'start ({start[0]:.2f}, {start[1]:.2f}) '
                            f'is off the map ({self.grid.bounds_text()})')
+        stamp = (request.goals[-1] if through else request.goal).header.stamp
         try:
-            return self._plan(start, goal, request.goal.header.stamp)
+            legs, at = [], start
+            for goal in goals:  # each leg from where the one before ends
+                leg = np.asarray(self.planner(at, goal), dtype=float)
+                legs.append(leg if not legs else leg[1:])
+                at = goal
         except PlanningError as exc:
             raise _Refused(result.NO_VALID_PATH, str(exc)) from None
+        path = conv.path_to_msg(np.vstack(legs), stamp=stamp, frame_id=self.frame_id)
+        self.path_pub.publish(path)
+        return path
 
     def _plan(self, start, goal, stamp):
         """Plan and publish the path; returns it (the whole path to the goal)."""
@@ -362,7 +384,7 @@ class PlannerNode(Node):
 
 
 class _Refused(Exception):
-    """No path for a ``compute_path_to_pose`` goal: ``code`` (ComputePathToPose's) says why."""
+    """No path for a path action's goal: ``code`` (its result's) says why."""
 
     def __init__(self, code, message):
         super().__init__(message)

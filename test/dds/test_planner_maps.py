@@ -248,7 +248,8 @@ def test_a_new_map_replans_the_current_goal_and_publishes_its_path(planner):
 
 
 def test_compute_path_to_pose_answers_as_nav2s_planner_server(planner):
-    """nav2's ComputePathToPose (BasicNavigator.getPath): the path, or the code saying why."""
+    """nav2's ComputePathToPose and ComputePathThroughPoses (BasicNavigator.getPath and
+    getPathThroughPoses): the path, or the code saying why."""
     from rclpy.action import ActionClient
 
     from sela_ros.nodes import interface as ifc
@@ -297,6 +298,31 @@ def test_compute_path_to_pose_answers_as_nav2s_planner_server(planner):
         assert answer.result.error_code == code, (kwargs, answer.result)
         assert words in answer.result.error_msg, (kwargs, answer.result.error_msg)
         assert not answer.result.path.poses
+
+    # Through poses in order: one path, each leg from where the one before ends.
+    through_type = ifc.COMPUTE_PATH_THROUGH_POSES.type
+    through = ActionClient(client.node, through_type, ifc.COMPUTE_PATH_THROUGH_POSES.root_name)
+    client.spin_until(through.server_is_ready, 60, 'compute_path_through_poses')
+
+    def ask_through(goals):
+        request = through_type.Goal(goals=[conv.pose_stamped(g) for g in goals],
+                                    start=conv.pose_stamped((0.0, 0.0)), use_start=True)
+        sent = through.send_goal_async(request)
+        client.spin_until(sent.done, 30, 'the goal response')
+        done = sent.result().get_result_async()
+        client.spin_until(done.done, 30, 'the result')
+        return done.result()
+
+    answer = ask_through([(4.5, 4.5), (0.5, 4.5)])
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED, answer.result
+    path = conv.path_from_msg(answer.result.path)
+    assert np.allclose(path[0], (0.0, 0.0)) and np.allclose(path[-1], (0.5, 4.5))
+    assert np.isclose(np.hypot(*(path - (4.5, 4.5)).T), 0.0).sum() == 1  # passed once
+    assert _segments_free(maze, path)
+    for goals, code in (([], through_type.Result.NO_VIAPOINTS_GIVEN),
+                        ([(4.5, 4.5), (50.0, 0.0)], through_type.Result.GOAL_OUTSIDE_MAP)):
+        answer = ask_through(goals)
+        assert answer.status == GoalStatus.STATUS_ABORTED and answer.result.error_code == code
 
     # use_start false: from the robot's pose (its odometry).
     odom_pub = client.node.create_publisher(Odometry, '/hexapod/odom', STATE_QOS)

@@ -12,7 +12,8 @@ ADDED = {'/hexapod/joint_states', '/planner/map', '/sela/prediction',
          '/map', '/goal_path',  # map_server's map for the planner; a mission of many goals
          '/sim_bridge/alive', '/planner/alive', '/damage_detector/alive',
          '/sela_adapter/alive',  # liveness from the middleware (QoS liveliness)
-         '/navigate_through_poses', '/compute_path_to_pose'}  # nav2's, as nav2 names them
+         '/navigate_through_poses', '/compute_path_to_pose',  # nav2's, as nav2 names them
+         '/compute_path_through_poses'}
 
 
 def test_root_names_are_the_design_ones():
@@ -33,8 +34,8 @@ def test_names_are_relative_so_a_namespace_moves_the_stack():
         assert action.name in ('navigate_to_pose', 'navigate_through_poses',
                                'follow_waypoints')
         assert action.owner == ifc.SELA_ADAPTER
-    assert [(a.name, a.owner) for a in ifc.PLANNER_ACTIONS] == [('compute_path_to_pose',
-                                                                 ifc.PLANNER)]
+    assert [(a.name, a.owner) for a in ifc.PLANNER_ACTIONS] == [
+        ('compute_path_to_pose', ifc.PLANNER), ('compute_path_through_poses', ifc.PLANNER)]
 
 
 def test_the_actions_are_nav2s_types():
@@ -56,7 +57,7 @@ def test_the_actions_are_nav2s_types():
 
 def test_the_added_actions_are_nav2_jazzys_types_field_for_field():
     """The type hash a ROS install checks is over the fields' names and types, in order."""
-    from nav2_msgs.action import ComputePathToPose, NavigateThroughPoses
+    from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose, NavigateThroughPoses
 
     assert ifc.NAVIGATE_THROUGH_POSES.type is NavigateThroughPoses
     assert ifc.COMPUTE_PATH_TO_POSE.type is ComputePathToPose
@@ -76,6 +77,13 @@ def test_the_added_actions_are_nav2_jazzys_types_field_for_field():
     assert list(ComputePathToPose.Result.get_fields_and_field_types().items()) == [
         ('path', 'nav_msgs/Path'), ('planning_time', 'builtin_interfaces/Duration'),
         ('error_code', 'uint16'), ('error_msg', 'string')]
+    assert list(ComputePathThroughPoses.Goal.get_fields_and_field_types().items()) == [
+        ('goals', 'sequence<geometry_msgs/PoseStamped>'),
+        ('start', 'geometry_msgs/PoseStamped'), ('planner_id', 'string'),
+        ('use_start', 'boolean')]
+    assert ComputePathThroughPoses.Result.get_fields_and_field_types() \
+        == ComputePathToPose.Result.get_fields_and_field_types()
+    assert ComputePathThroughPoses.Result.NO_VIAPOINTS_GIVEN == 309
     assert (ComputePathToPose.Result.START_OUTSIDE_MAP, ComputePathToPose.Result.GOAL_OUTSIDE_MAP,
             ComputePathToPose.Result.GOAL_OCCUPIED, ComputePathToPose.Result.NO_VALID_PATH) \
         == (203, ifc.GOAL_OUTSIDE_MAP, ifc.GOAL_OCCUPIED, ifc.NO_VALID_PATH)
