@@ -236,27 +236,37 @@ def test_a_new_goal_preempts_the_running_one(stack):
     assert new.status == GoalStatus.STATUS_SUCCEEDED, (new.result, nodes.logs())
 
 
-def test_follow_waypoints_reaches_every_waypoint_in_order(stack):
-    nodes, user = stack
-    poses = [user.goal_ahead(*d) for d in ((0.4, 0.0), (0.4, 0.4), (0.0, 0.4))]
+def _walk_through(user, nodes, action_client, goal, poses):
+    """Send a goal of several ``poses``; it must succeed, ending within goal.eps of the last.
+    Returns its result, its feedback, the statuses of the poses reached on the way, and the
+    poses' (x, y)."""
     feedback = []
     seen = len(user.statuses)
-    handle = user.send(user.follow, FollowWaypoints.Goal(poses=poses), feedback)
+    handle = user.send(action_client, goal, feedback)
     assert handle.accepted
     answer = user.result(handle)
     assert answer.status == GoalStatus.STATUS_SUCCEEDED, (answer.result, nodes.logs())
-    assert list(answer.result.missed_waypoints) == [] and answer.result.error_code == 0
-    ranks = [f.current_waypoint for f in feedback]
-    print(f'follow_waypoints: feedback current_waypoint {ranks}')
-    assert ranks == sorted(ranks) and set(ranks) == {0, 1, 2}, ranks
+    assert answer.result.error_code == 0
     mission = _mission_of(user, handle)
     user.said_end(mission)
     reached = [s for s in user.statuses[seen:]
                if s.get('mission') == mission and 'goal_reached' in s]
     xy = [(p.pose.position.x, p.pose.position.y) for p in poses]
+    assert math.dist(conv_vector(user.steps_of(mission)[-1]['end_pose'])[:2], xy[-1]) <= EPS
+    return answer.result, feedback, reached, xy
+
+
+def test_follow_waypoints_reaches_every_waypoint_in_order(stack):
+    nodes, user = stack
+    poses = [user.goal_ahead(*d) for d in ((0.4, 0.0), (0.4, 0.4), (0.0, 0.4))]
+    result, feedback, reached, xy = _walk_through(user, nodes, user.follow,
+                                                  FollowWaypoints.Goal(poses=poses), poses)
+    assert list(result.missed_waypoints) == []
+    ranks = [f.current_waypoint for f in feedback]
+    print(f'follow_waypoints: feedback current_waypoint {ranks}')
+    assert ranks == sorted(ranks) and set(ranks) == {0, 1, 2}, ranks
     assert [int(s['goal_index']) for s in reached] == [2, 3]
     assert np.allclose([conv_vector(s['goal_reached']) for s in reached], xy[:2], atol=1e-6)
-    assert math.dist(conv_vector(user.steps_of(mission)[-1]['end_pose'])[:2], xy[2]) <= EPS
 
 
 def conv_vector(text):
@@ -268,21 +278,10 @@ def test_navigate_through_poses_reaches_each_pose_in_order_with_what_is_left(sta
     poses; each feedback says how many poses are left and how far it is through them."""
     nodes, user = stack
     poses = [user.goal_ahead(*d) for d in ((0.4, 0.0), (0.4, 0.4))]
-    feedback = []
-    seen = len(user.statuses)
-    handle = user.send(user.through, NavigateThroughPoses.Goal(poses=poses), feedback)
-    assert handle.accepted
-    answer = user.result(handle)
-    assert answer.status == GoalStatus.STATUS_SUCCEEDED, (answer.result, nodes.logs())
-    assert answer.result.error_code == 0
-    mission = _mission_of(user, handle)
-    user.said_end(mission)
-    reached = [s for s in user.statuses[seen:]
-               if s.get('mission') == mission and 'goal_reached' in s]
-    xy = [(p.pose.position.x, p.pose.position.y) for p in poses]
+    _, feedback, reached, xy = _walk_through(user, nodes, user.through,
+                                             NavigateThroughPoses.Goal(poses=poses), poses)
     assert [int(s['goal_index']) for s in reached] == [2]
     assert np.allclose(conv_vector(reached[0]['goal_reached']), xy[0], atol=1e-6)
-    assert math.dist(conv_vector(user.steps_of(mission)[-1]['end_pose'])[:2], xy[1]) <= EPS
     left = [f.number_of_poses_remaining for f in feedback]
     print(f'navigate_through_poses: poses remaining {left}, distances '
           f'{[round(f.distance_remaining, 2) for f in feedback]}')
