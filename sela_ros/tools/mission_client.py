@@ -32,6 +32,30 @@ STATUSES_KEPT = 100_000  # the latest diagnostics statuses, for errors() and hea
 ANSWER_WAIT = 10.0
 
 
+def send_goal_answered(client, name, goal, spin_until, timeout, feedback_callback=None):
+    """Send ``goal`` with ``client``, the client of the action ``name``, and return its
+    answer (the goal handle), spinning with ``spin_until(predicate, seconds, what)``.
+
+    The goal is asked again when it is not answered within :data:`ANSWER_WAIT`: a server
+    that is ready to this client may not hear it yet (a relaunched adapter, or one whose last
+    run DDS has not forgotten), or the writer of its answers may not have matched this client
+    yet, and the request or the answer is then lost. An answer lost on its way back is asked
+    again too: the second goal preempts the first."""
+    deadline = time.monotonic() + timeout
+    extra = {} if feedback_callback is None else {'feedback_callback': feedback_callback}
+    while True:
+        sent = client.send_goal_async(goal, **extra)
+        wait = min(ANSWER_WAIT, max(0.0, deadline - time.monotonic()))
+        try:
+            spin_until(sent.done, wait, f'the answer to the {name} goal')
+            return sent.result()
+        except TimeoutError:
+            if time.monotonic() >= deadline:
+                raise TimeoutError(f'timed out after {timeout} s waiting for the answer to '
+                                   f'the {name} goal') from None
+            sent.cancel()
+
+
 @dataclass
 class StepFeedback:
     """One step of the mission, as the adapter reported it."""
@@ -206,22 +230,8 @@ class MissionClient:
         self._send(ifc.FOLLOW_WAYPOINTS, ifc.FOLLOW_WAYPOINTS.type.Goal(poses=poses), timeout)
 
     def _send_goal(self, action, goal, timeout):
-        """Send the goal; ask again when it is not answered within :data:`ANSWER_WAIT`: a
-        server that is ready to this client may not hear it yet (a relaunched adapter, or
-        one whose last run DDS has not forgotten), and the request is then lost. An answer
-        lost on its way back is asked again too: the second goal preempts the first."""
-        deadline = time.monotonic() + timeout
-        while True:
-            sent = self._action(action).send_goal_async(goal)
-            wait = min(ANSWER_WAIT, max(0.0, deadline - time.monotonic()))
-            try:
-                self.spin_until(sent.done, wait, f'the answer to the {action.name} goal')
-                return sent.result()
-            except TimeoutError:
-                if time.monotonic() >= deadline:
-                    raise TimeoutError(f'timed out after {timeout} s waiting for the answer to '
-                                       f'the {action.name} goal') from None
-                sent.cancel()
+        return send_goal_answered(self._action(action), action.name, goal, self.spin_until,
+                                  timeout)
 
     def _send(self, action, goal, timeout):
         self.wait_until_ready(timeout)

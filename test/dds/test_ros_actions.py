@@ -15,6 +15,7 @@ from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPo
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
+from sela_ros.tools.mission_client import send_goal_answered
 
 from ros_graph import Client, NodeProcesses
 
@@ -34,6 +35,9 @@ class ActionUser:
         self.navigate = ifc.action_client(node, ifc.NAVIGATE_TO_POSE, namespace)
         self.follow = ifc.action_client(node, ifc.FOLLOW_WAYPOINTS, namespace)
         self.through = ifc.action_client(node, ifc.NAVIGATE_THROUGH_POSES, namespace)
+        self.names = {self.navigate: ifc.NAVIGATE_TO_POSE.name,
+                      self.follow: ifc.FOLLOW_WAYPOINTS.name,
+                      self.through: ifc.NAVIGATE_THROUGH_POSES.name}
         self.gaits, self.statuses, self.errors, self.pose, self.stamp = [], [], [], None, None
         def name(relative):
             return f'{namespace}/{relative}' if namespace else relative
@@ -68,10 +72,10 @@ class ActionUser:
         return conv.pose_stamped((self.pose[0] + dx, self.pose[1] + dy), frame_id='odom')
 
     def send(self, action_client, goal, feedback):
-        future = action_client.send_goal_async(goal, feedback_callback=lambda f: feedback.append(
-            f.feedback))
-        self.client.spin_until(future.done, 30, 'the goal response')
-        return future.result()
+        """The goal's answer, asked again while none comes (as the product's client)."""
+        return send_goal_answered(action_client, self.names[action_client], goal,
+                                  self.client.spin_until, 60,
+                                  lambda f: feedback.append(f.feedback))
 
     def result(self, handle, timeout=MISSION_TIMEOUT):
         future = handle.get_result_async()
