@@ -140,10 +140,10 @@ class MissionActions:
         if hasattr(request, 'poses'):
             count = goal_count(request)
             limit = self.node.values['max_waypoints']
-            if count > limit and not hasattr(request, 'goal_index'):
+            if count > limit and not hasattr(request, 'goal_index'):  # NavigateThroughPoses
                 return (f'navigate_through_poses: {count} poses, more than max_waypoints '
                         f'{limit}')
-            if count > limit:
+            if count > limit:  # FollowWaypoints
                 return (f'follow_waypoints: {len(request.poses)} pose(s) from goal_index '
                         f'{request.goal_index} and {request.number_of_loops} more loop(s) '
                         f'make {count} waypoints, more than max_waypoints {limit}')

@@ -93,6 +93,12 @@ def test_a_goal_of_a_million_loops_is_refused_without_expanding_it(actions):
     assert 'make 2000001 waypoints, more than max_waypoints 1000' in actions._refusal(big)
     assert actions._refusal(FollowWaypoints.Goal(poses=_poses((1, 0)),
                                                  number_of_loops=999)) is None
+    from nav2_msgs.action import NavigateThroughPoses
+
+    many = NavigateThroughPoses.Goal(poses=_poses(*[(0.001 * i, 0.0) for i in range(1001)]))
+    assert 'navigate_through_poses: 1001 poses, more than max_waypoints 1000' \
+        in actions._refusal(many)
+    assert actions._refusal(NavigateThroughPoses.Goal(poses=many.poses[:1000])) is None
     actions.active = 200
     assert 'accepted goals have not ended yet' in actions._refusal(NavigateToPose.Goal())
 
