@@ -328,12 +328,17 @@ class PlannerNode(Node):
             raise _Refused(result.INVALID_PLANNER, f'planner_id {request.planner_id!r} is not '
                            f"served here; use '' or 'GridBased'")
         through = hasattr(request, 'goals')
+        poses = list(request.goals) if through else [request.goal]
+        sent = poses + ([request.start] if request.use_start else [])
+        frame = next((p.header.frame_id for p in sent
+                      if p.header.frame_id not in ('', self.frame_id)), None)
+        if frame is not None:  # no tf here: only the planning frame is known
+            raise _Refused(result.TF_ERROR, f"frame '{frame}' is not supported; send the poses "
+                           f"in '{self.frame_id}'")
         try:
-            if through:
-                goals = [conv.goal_from_pose_stamped(g, self.frame_id, f'goals[{i}]')
-                         for i, g in enumerate(request.goals)]
-            else:
-                goals = [conv.goal_from_pose_stamped(request.goal, self.frame_id, 'goal')]
+            names = [f'goals[{i}]' for i in range(len(poses))] if through else ['goal']
+            goals = [conv.goal_from_pose_stamped(p, self.frame_id, n)
+                     for p, n in zip(poses, names)]
             if request.use_start:
                 start = conv.goal_from_pose_stamped(request.start, self.frame_id, 'start')
             elif self.pose is None:
@@ -342,8 +347,7 @@ class PlannerNode(Node):
             else:
                 start = self.pose[:2]
         except conv.MessageError as exc:
-            code = result.TF_ERROR if 'frame' in str(exc) else result.UNKNOWN
-            raise _Refused(code, str(exc)) from None
+            raise _Refused(result.UNKNOWN, str(exc)) from None
         if not goals:
             raise _Refused(result.NO_VIAPOINTS_GIVEN, 'no goals given')
         for goal in goals:
@@ -355,7 +359,6 @@ class PlannerNode(Node):
         if not self.grid.in_map(start):
             raise _Refused(result.START_OUTSIDE_MAP, f'start ({start[0]:.2f}, {start[1]:.2f}) '
                            f'is off the map ({self.grid.bounds_text()})')
-        stamp = (request.goals[-1] if through else request.goal).header.stamp
         try:
             legs, at = [], start
             for goal in goals:  # each leg from where the one before ends
@@ -364,13 +367,14 @@ class PlannerNode(Node):
                 at = goal
         except PlanningError as exc:
             raise _Refused(result.NO_VALID_PATH, str(exc)) from None
-        path = conv.path_to_msg(np.vstack(legs), stamp=stamp, frame_id=self.frame_id)
-        self.path_pub.publish(path)
-        return path
+        return self._publish_path(np.vstack(legs), poses[-1].header.stamp)
 
     def _plan(self, start, goal, stamp):
         """Plan and publish the path; returns it (the whole path to the goal)."""
-        path = conv.path_to_msg(self.planner(start, goal), stamp=stamp, frame_id=self.frame_id)
+        return self._publish_path(self.planner(start, goal), stamp)
+
+    def _publish_path(self, points, stamp):
+        path = conv.path_to_msg(points, stamp=stamp, frame_id=self.frame_id)
         self.path_pub.publish(path)
         return path
 
