@@ -70,12 +70,12 @@ map8d: venv
 # SELA's damage priors for the shipped 8-D map: every gait run on each foreseen damage
 # (14-21 minutes of one core per damage), then the fast gaits the fall model fears run after
 # others (5-7 minutes per front or rear leg); what is in ~/.cache/sela_ros/oracle is free.
-# Then the damage library's 15 pairs of legs removed are added as the second tier.
+# Then the damage library's other conditions are added as the second tier.
 PRIORS_DAMAGES ?= single-legs
 WORKERS ?= 2
 priors: venv
 	$(PY) scripts/build_priors.py 8d --damages '$(PRIORS_DAMAGES)' --workers $(WORKERS)
-	$(PY) scripts/build_library.py --second-tier remove-pairs
+	$(PY) scripts/build_library.py --second-tier library
 
 # The damage library (docs/priors_combination.md): 84 conditions x 4,000 gaits, about 4.7
 # core-hours; resumes from the checkpoints in mapbuild/library.

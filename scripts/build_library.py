@@ -339,8 +339,9 @@ def assemble(archive, out, gaits, library, shipped=None, only=None, partial=Fals
 
 def write_second_tier(path, archive, shipped, specs, library_path, out):
     """Write the map's damage priors (beside it) as its first tier (the whole tables that
-    ship) followed by the library's tables of ``specs`` ('remove-pairs': those of the 15
-    pairs of legs removed that the first tier does not hold; or ';'-separated conditions),
+    ship) followed by the library's tables of ``specs`` ('library': every one the first tier
+    does not hold; 'remove-pairs': those of the 15 pairs of legs removed; or ';'-separated
+    conditions),
     flagged as the second tier (``DamagePriors.reproduce_only``), with the gaits each
     simulated (the build's checkpoints in ``out``; the rest were inferred:
     ``DamagePriors.simulated``)."""
@@ -356,6 +357,8 @@ def write_second_tier(path, archive, shipped, specs, library_path, out):
     if specs == 'remove-pairs':  # a pair with a whole table in the first tier stays there
         wanted = [n for n in conditions() if n.startswith('remove:') and ',' in n
                   and n not in first.names]
+    elif specs == 'library':  # every condition that has no whole table in the first tier
+        wanted = [n for n in library.names if n not in first.names]
     else:
         wanted = [w.strip() for w in specs.split(';') if w.strip()]
     canonical = [parse_damage(n).canonical() for n in library.names]
@@ -443,8 +446,10 @@ def main(argv=None):
     parser.add_argument('--second-tier', default=None, metavar='SPECS',
                         help="add these tables of the assembled library (--library) to the "
                              "map's damage priors as a second tier, used only once one of "
-                             "them reproduced the robot's standing starts: 'remove-pairs' "
-                             "(the 15 pairs of legs removed) or ';'-separated conditions")
+                             "them reproduced the robot's standing starts: 'library' (every "
+                             "condition the first tier does not hold: what `make priors` "
+                             "ships), 'remove-pairs' (the 15 pairs of legs removed) or "
+                             "';'-separated conditions")
     args = parser.parse_args(argv)
     path = resolve_archive_path(args.archive)
     archive = load_archive(path)

@@ -210,9 +210,6 @@ LIBRARY_METHODS = ('library-select', 'library', 'library-own', 'library-own-caut
 OWN_LIBRARY_METHODS = ('library-own', 'library-own-caution')
 #: Methods whose prior mean is a table of the damage (:func:`bound_table`; need --library).
 BOUND_METHODS = ('bound-own', 'bound-fit', 'bound-fit-signed')
-#: Two conditions are near duplicates when their tables differ by less than this, rms over
-#: the gaits that stand in both, in units of the chaining error (RESIDUAL_SCALE).
-NEAR_DUPLICATE = 1.0
 CAMPAIGNS = ('campaign_priors', 'campaign_unforeseen', 'campaign_oracle_one_side',
              'campaign_oracle_between', 'campaign_oracle_combined')
 
@@ -257,27 +254,10 @@ def library_cases(path=None):
 
 def leave_out(priors, damage):
     """``priors`` less ``damage``'s own condition (the same damage, canonically) and every
-    table nearer to it than :data:`NEAR_DUPLICATE`; returns ``(priors, names left out)``."""
-    from sela_ros.core.learning.damage_priors import RESIDUAL_SCALE
-    from sim_bridge.damage import parse_damage
+    table nearer to it than ``NEAR_DUPLICATE``; returns ``(priors, names left out)``."""
+    from sela_ros.experiments.workers import own_and_near
 
-    def canonical(name):
-        try:
-            return parse_damage(name).canonical()
-        except ValueError:  # a table that is no damage of the grammar is never left out
-            return None
-
-    canonical = [canonical(n) for n in priors.names]
-    own = [i for i, c in enumerate(canonical) if c == parse_damage(damage).canonical()]
-    out = set(own)
-    for i in own:
-        for j in range(len(priors.names)):
-            stand = ~(priors.fallen[i] | priors.fallen[j])
-            diff = (priors.generic_reward[j, stand] - priors.generic_reward[i, stand]) \
-                / RESIDUAL_SCALE
-            if np.sqrt(np.mean(diff ** 2)) < NEAR_DUPLICATE:
-                out.add(j)
-    names = [priors.names[i] for i in sorted(out)]
+    names = own_and_near(priors, damage)
     for name in names:
         priors = priors.without(name)
     return priors, names
@@ -285,8 +265,8 @@ def leave_out(priors, damage):
 
 @functools.lru_cache(maxsize=1)
 def second_tier_cases():
-    """The damages of the shipped priors' second tier (two legs lost), each measured with
-    the priors as they ship: ``(damage, damage, False)``."""
+    """The damages of the shipped priors' second tier (the library's conditions), each
+    measured with the priors as they ship: ``(damage, damage, False)``."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.storage import default_archive_path, load_archive
 
@@ -756,7 +736,8 @@ def main(argv=None):
                              "--library, or of the library's plan, as a damage nobody "
                              "foresaw, then the unforeseen cases it does not hold), "
                              "'second-tier' (the damages of the shipped priors' second "
-                             'tier, their tables in) or case names joined by ";"')
+                             "tier, their tables in), 'second-tier-pairs' (its pairs of "
+                             'legs removed) or case names joined by ";"')
     parser.add_argument('--goals', default=None,
                         help='goals X,Y separated by spaces (default: (2,2) (-2,1.5) '
                              '(1.5,-2) (2.5,0.5))')
@@ -795,6 +776,8 @@ def main(argv=None):
         cases = UNFORESEEN if args.cases == 'unforeseen' else FORESEEN
     elif args.cases == 'second-tier':
         cases = second_tier_cases()
+    elif args.cases == 'second-tier-pairs':
+        cases = tuple(c for c in second_tier_cases() if c[1].count('remove:') == 2)
     else:
         wanted = args.cases.split(';')
         known = UNFORESEEN + FORESEEN + DEVIATIONS + library_cases(args.library) \

@@ -5,14 +5,43 @@ from __future__ import annotations
 
 
 def load_priors(value, archive_path, archive, damage=None, leave_out_own=False):
-    """The damage priors of a run (None: the intact map only); ``leave_out_own`` drops
-    ``damage`` from them. Raises DamagePriorError."""
+    """The damage priors of a run (None: the intact map only); ``leave_out_own`` measures
+    ``damage`` as if nobody foresaw it: its own table leaves them, and so do its near
+    duplicates in the second tier (the library's tables; the first tier's whole tables of
+    other damages stay). Raises DamagePriorError."""
     from sela_ros.core.learning import resolve_priors
 
     priors = resolve_priors(value, archive_path, archive.params)
     if priors is not None and leave_out_own:
-        priors = priors.without(damage)
+        second = set(priors.names[len(priors.first_tier()):])
+        own = own_tables(priors, damage)
+        for name in own_and_near(priors, damage):
+            if name in own or name in second:
+                priors = priors.without(name)
     return priors
+
+
+def own_tables(priors, damage):
+    """The names of the tables of ``priors`` that are ``damage`` (canonically)."""
+    from sim_bridge.damage import parse_damage
+
+    def canonical(name):
+        try:
+            return parse_damage(name).canonical()
+        except ValueError:  # a table that is no damage of the grammar is never its own
+            return None
+
+    key = parse_damage(damage).canonical()
+    return [n for n in priors.names if canonical(n) == key]
+
+
+def own_and_near(priors, damage):
+    """The names of the tables of ``priors`` that are ``damage`` and of those within
+    :data:`NEAR_DUPLICATE` of one of them (``DamagePriors.near``), in the priors' order."""
+    out = set()
+    for name in own_tables(priors, damage):
+        out.update(priors.near(name))
+    return [n for n in priors.names if n in out]
 
 
 # Per worker process: the archive, the damage priors and the map, loaded once.

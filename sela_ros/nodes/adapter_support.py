@@ -13,6 +13,18 @@ from sela_ros.core.storage import ArchiveError, load_archive, resolve_archive_pa
 from sela_ros.nodes import adapter_params as params
 
 
+def _listed(names, most=16):
+    """``names`` joined, or past ``most`` of them, counted by their kinds of damage (the
+    first word of each part: '15 remove+remove, 18 shorten, ...')."""
+    if len(names) <= most:
+        return ', '.join(names)
+    kinds = {}
+    for name in names:
+        kind = '+'.join(part.split(':')[0] for part in name.split(','))
+        kinds[kind] = kinds.get(kind, 0) + 1
+    return ', '.join(f'{n} {kind}' for kind, n in kinds.items())
+
+
 def load_priors(setting, archive, path, logger):
     """The damage priors ``setting`` (the ``priors.tables`` parameter) names for ``archive``; None
     (logged) if there are none or they cannot be used: SELA then adapts from the intact map
@@ -27,7 +39,7 @@ def load_priors(setting, archive, path, logger):
         second = priors.names[len(first):]
         logger.info(f'damage priors: {len(first)} foreseen damages ({", ".join(first.names)})'
                     + (f'; {len(second)} more, each used once it reproduces the robot\'s '
-                       f'standing starts ({", ".join(second)})' if second else ''))
+                       f'standing starts ({_listed(second)})' if second else ''))
         partly = [i for i in range(len(priors)) if priors.inferred(i) is not None]
         if partly:
             counts = sorted({int((~priors.inferred(i)).sum()) for i in partly})

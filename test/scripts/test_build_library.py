@@ -249,3 +249,15 @@ def test_the_second_tier_adds_library_tables_after_the_whole_ones(lib, tmp_path)
     with pytest.raises(SystemExit, match='already a whole table'):
         lib.write_second_tier(map_path, archive, shipped, 'remove:front_left',
                               tmp_path / 'library.npz', out)
+    # 'library': every table of the library the first tier does not hold, in its order.
+    with pytest.raises(SystemExit, match='no gait of block:rear_left.knee=0.4 evaluated'):
+        lib.write_second_tier(map_path, archive, shipped, 'library', tmp_path / 'library.npz',
+                              out)
+    (out / lib._slug('block:rear_left.knee=0.4')).mkdir(parents=True)
+    np.savez(out / lib._slug('block:rear_left.knee=0.4') / '000000.npz', gaits=simulated[:2],
+             generic_reward=whole[simulated[:2]] * 2, fallen=np.zeros(2, bool))
+    lib.write_second_tier(map_path, archive, shipped, 'library', tmp_path / 'library.npz', out)
+    everything = load_damage_priors(priors_path(map_path), archive.params)
+    assert everything.names == ('remove:front_left', pair, 'block:rear_left.knee=0.4')
+    assert everything.second_tier.tolist() == [False, True, True]
+    assert np.flatnonzero(~everything.inferred(2)).tolist() == [3, 7]

@@ -111,7 +111,7 @@ def test_a_bound_with_the_damages_own_table_counts_as_foreseen(compare):
     assert not compare.is_foreseen('shorten:front_left:0.5', 'bound-fit-signed')
 
 
-def test_the_second_tier_cases_are_the_shipped_pairs_with_their_tables_in(compare):
+def test_the_second_tier_cases_are_the_shipped_library_tables_with_their_tables_in(compare):
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.storage import default_archive_path, load_archive
 
@@ -119,5 +119,7 @@ def test_the_second_tier_cases_are_the_shipped_pairs_with_their_tables_in(compar
                              load_archive(default_archive_path()).params)
     cases = compare.second_tier_cases()
     assert [c[1] for c in cases] == list(shipped.names[len(shipped.first_tier()):])
-    assert len(cases) == 15 and all(d.count('remove:') == 2 for _, d, _ in cases)
+    assert len(cases) == 84 and sum(d.count('remove:') == 2 for _, d, _ in cases) == 15
     assert all(label == damage and not own for label, damage, own in cases)
+    assert all(compare.is_foreseen(label, 'caution') for label, _, _ in cases)
+    assert not compare.is_foreseen('block:front_left.knee=0.0/own-left-out', 'caution')

@@ -68,6 +68,9 @@ REPRODUCED_SHARE = 1.0 / 3.0
 #: The cap on the misfit of a table that reproduced the standing-start steps: its chained
 #: steps may then be off by more (a gait chained from an odd posture) before it is set aside.
 DEFAULT_MAX_MISFIT_REPRODUCED = 2.0
+#: Two tables are near duplicates when they differ by less than this, rms over the gaits
+#: that stand in both, in units of RESIDUAL_SCALE (docs/damage_library.md).
+NEAR_DUPLICATE = 1.0
 FORMAT_VERSION = 1
 
 
@@ -113,8 +116,8 @@ class DamagePriors:
             another one (the fast gaits the fall model fears: ``make priors``) and how often
             it fell then; None: none was.
         reproduce_only: ``(K,)`` the second tier: tables used only once one of them has
-            reproduced the robot's standing starts (:meth:`first_tier`; two legs lost at
-            once), after every first-tier table; None: none is.
+            reproduced the robot's standing starts (:meth:`first_tier`; the damage
+            library's conditions), after every first-tier table; None: none is.
         simulated: ``(K, M)`` which gaits each table simulated; the others were inferred
             from them (the damage library's tables) and are not chosen while the table is
             the prior (:meth:`inferred`); None: every gait of every table was simulated.
@@ -227,6 +230,23 @@ class DamagePriors:
         return DamagePriors(tuple(self.names[i] for i in keep), self.generic_reward[keep],
                             self.fallen[keep], self.archive_checksum, runs, falls,
                             self._second[keep], simulated)
+
+    def near(self, name: str, threshold: float = NEAR_DUPLICATE) -> list[str]:
+        """The tables whose standing outcomes lie within ``threshold`` (rms, in units of
+        :data:`RESIDUAL_SCALE`) of the table ``name``'s, ``name`` itself among them: its near
+        duplicates, which a damage measured as if nobody foresaw it leaves out too. Raises
+        KeyError for a name it does not hold."""
+        i = self.names.index(name) if name in self.names else None
+        if i is None:
+            raise KeyError(name)
+        out = []
+        for j, other in enumerate(self.names):
+            stand = ~(self.fallen[i] | self.fallen[j])
+            diff = (self.generic_reward[j, stand] - self.generic_reward[i, stand]) \
+                / RESIDUAL_SCALE
+            if j == i or np.sqrt(np.mean(diff ** 2)) < threshold:
+                out.append(other)
+        return out
 
     def check_archive(self, params) -> None:
         """Raise :class:`DamagePriorError` unless the tables are for these gaits."""

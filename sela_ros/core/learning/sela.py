@@ -180,9 +180,9 @@ class SELA:
         """The damage priors in use (None: none): the first tier
         (:meth:`DamagePriors.first_tier`) until a second-tier table is the one that best
         explains the steps and has reproduced the robot's standing starts, then all of
-        them. The second tier (two legs lost at once) is never mixed nor hedged over: on
-        a damage it does not hold it would only add ways to fit the steps by chance
-        (docs/learning_the_damage.md, "Two legs lost: a second tier of tables")."""
+        them. The second tier (the damage library's tables) is never mixed nor hedged
+        over: on a damage it does not hold it would only add ways to fit the steps by
+        chance (docs/learning_the_damage.md, "Two legs lost: a second tier of tables")."""
         priors = self._priors
         if priors is None or not priors.second_tier.any():
             return priors
