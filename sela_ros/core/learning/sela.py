@@ -179,11 +179,10 @@ class SELA:
     def _tables(self):
         """The damage priors in use (None: none): the first tier
         (:meth:`DamagePriors.first_tier`) until a second-tier table is the one that best
-        explains the steps and has reproduced the robot's standing starts while the first
-        tier's best table has not, then all of them. The second tier (the damage
-        library's tables) is never mixed nor hedged over: on a damage it does not hold it
-        would only add ways to fit the steps by chance (docs/learning_the_damage.md, "The
-        whole library as the second tier")."""
+        explains the steps and has reproduced the robot's standing starts, then all of
+        them. The second tier (the damage library's tables) is never mixed nor hedged
+        over: on a damage it does not hold it would only add ways to fit the steps by
+        chance (docs/learning_the_damage.md, "Two legs lost: a second tier of tables")."""
         priors = self._priors
         if priors is None or not priors.second_tier.any():
             return priors
@@ -194,12 +193,11 @@ class SELA:
         if self._tier[0] != key:
             use = priors.first_tier()
             if self._gp.num_samples >= SECOND_TIER_MIN_STEPS:
-                steps = (self._prior, idx, grs, fall_idx, fallen, self.config.priors_max_misfit,
-                         self._standing, self.config.priors_max_misfit_reproduced)
-                selection = priors.select(*steps)
+                selection = priors.select(self._prior, idx, grs, fall_idx, fallen,
+                                          self.config.priors_max_misfit, self._standing,
+                                          self.config.priors_max_misfit_reproduced)
                 if selection.index is not None and selection.reproduced \
-                        and priors.second_tier[selection.index] \
-                        and not use.select(*steps).reproduced:
+                        and priors.second_tier[selection.index]:
                     use = priors
             if use is not self._tier[1]:
                 self._mixture_fit = None

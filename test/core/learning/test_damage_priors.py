@@ -441,30 +441,6 @@ def test_the_second_tier_is_used_only_once_it_reproduced_the_standing_starts():
     assert picks[0].prior == 'remove:front_left'
 
 
-def test_a_second_tier_table_does_not_set_aside_a_first_tier_table_that_reproduced():
-    """A robot whose damage the first tier holds, nearly: a second-tier table that explains
-    its steps a little better (a near duplicate) is not used while the first tier's own
-    table reproduced the standing starts too."""
-    candidates, intact, priors, _ = world()
-    true = priors.generic_reward[0] + [0.01, 0.01, 0.0]
-    both = tiered(priors, true)
-    config = SELAConfig(gp_kernel_sigma=0.3, acquisition_ucb_alpha=0.0, fall_risk_cost=0.0)
-    waypoint = np.array([0.6, 0.0])
-    sela = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config, priors=both)
-    for step in range(4):
-        decision = sela.ask(np.zeros(3), waypoint=waypoint)
-        sela.tell_fall(decision.index, False)
-        sela.tell(decision.index, true[decision.index], standing_start=step % 2 == 0)
-    idx, grs = sela.observations
-    fall_idx, fallen = sela._fall.observations
-    steps = (intact, idx, grs, fall_idx, fallen, config.priors_max_misfit, sela._standing,
-             config.priors_max_misfit_reproduced)
-    best = both.select(*steps)
-    assert best.name == 'remove:front_left,remove:rear_left' and best.reproduced
-    assert both.first_tier().select(*steps).reproduced
-    assert sela.ask(np.zeros(3), waypoint=waypoint).prior == 'remove:front_left'
-
-
 def test_a_share_of_the_standing_starts_reproduced_is_enough():
     """A damage that tips the robot makes even a standing start vary: the table that
     reproduced a third of the standing starts has reproduced them (the misfit cap of a
