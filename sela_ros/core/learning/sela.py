@@ -182,7 +182,7 @@ class SELA:
         explains the steps and has reproduced the robot's standing starts, then all of
         them. The second tier (the damage library's tables) is never mixed nor hedged
         over: on a damage it does not hold it would only add ways to fit the steps by
-        chance (docs/learning_the_damage.md, "Two legs lost: a second tier of tables")."""
+        chance (docs/learning_the_damage.md, "The whole library as the second tier")."""
         priors = self._priors
         if priors is None or not priors.second_tier.any():
             return priors
