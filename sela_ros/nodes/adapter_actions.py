@@ -105,6 +105,9 @@ class MissionActions:
         # Ends of missions no goal was bound to yet, by mission id: a mission can end within
         # the event that starts it (its goal reached already), before _run binds its goal.
         self._unbound = {}
+        # The latest status of each such mission, said before its goal was bound (so without
+        # the goal's id): said again, with it, once the goal is bound.
+        self._said_unbound = {}
         self._cancels = []  # goal handles whose cancel was accepted, to feed after it
         self._cancel_ready = node.create_guard_condition(self._feed_cancels)
         self.active = 0  # goals accepted and not yet ended
@@ -199,6 +202,7 @@ class MissionActions:
         before = stepper.mission_id
         self.node.sim_check.poll()  # first: a mismatch found now holds this goal's first gait
         self._unbound.clear()  # a mission that ends within the feed below is this goal's
+        self._said_unbound.clear()
         event = (io.GoalReceived(goals[0]) if action is ifc.NAVIGATE_TO_POSE
                  else io.GoalsReceived(tuple(goals)))
         self.node.feed(event)
@@ -216,6 +220,10 @@ class MissionActions:
                     before, False, 'preempted', 'preempted by a new goal (the mission goes '
                     'on under it)', stepper.steps))
         self.bindings[stepper.mission_id] = binding
+        said = self._said_unbound.pop(str(stepper.mission_id), None)
+        if said is not None:  # its client waits for a status that names its goal
+            level, message, values = said
+            self.node.say(level, message, dict(values, goal_id=goal_id_text(handle)))
         early = self._unbound.pop(stepper.mission_id, None)
         if early is not None:
             self.mission_ended(early)
@@ -266,9 +274,16 @@ class MissionActions:
         binding = self.bindings.get(int(mission)) if str(mission).isdigit() else None
         return goal_id_text(binding.handle) if binding is not None else ''
 
-    def status_released(self, values):
-        """A mission status went out: a step (or a goal reached) is the goal's feedback."""
+    def status_released(self, level, message, values):
+        """A mission status went out: a step (or a goal reached) is the goal's feedback. One
+        of a mission no goal is bound to yet is kept, unless it tells a step, a detection, a
+        goal reached or a result (each read once by a client)."""
         binding = self.bindings.get(int(values.get('mission', -1)))
+        if binding is None and values.get('mission') and not (
+                {'step', 'adapt', 'goal_reached', 'success'} & values.keys()):
+            self._said_unbound[values['mission']] = (level, message, values)
+            while len(self._said_unbound) > UNBOUND_KEPT:
+                del self._said_unbound[next(iter(self._said_unbound))]
         if binding is None or not binding.handle.is_active:
             return
         pose = values.get('end_pose')

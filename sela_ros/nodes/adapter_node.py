@@ -234,7 +234,7 @@ class SelaAdapter(Node):
             self._result = None  # a new mission, or a cleared one: nothing to repeat
         elif self.now() - said >= RESULT_PERIOD:
             self._result = (level, message, values, self.now())
-            self._status(level, message, values)
+            self.say(level, message, values)
 
     @guard_parameters
     def parameters_callback(self, changes):
@@ -365,8 +365,8 @@ class SelaAdapter(Node):
                     # goal_id: the action goal that owns the mission ('' : a topic's goal).
                     values = dict(c.values, saved='False' if error else 'True',
                                   goal_id=self.actions.goal_id(c.values.get('mission', '')))
-                    self._status(c.level, c.message, values)
-                    self.actions.status_released(values)
+                    self.say(c.level, c.message, values)
+                    self.actions.status_released(c.level, c.message, values)
                     if 'success' in values:
                         self._result = (c.level, c.message, values, self.now())
                     if 'end_pose' in c.values and 'step' in c.values:
@@ -406,13 +406,14 @@ class SelaAdapter(Node):
         # One call site per severity: rclpy refuses to log one site at two severities.
         if level is io.Level.ERROR:
             self.get_logger().error(message)
-            self._status(level, message, {})
+            self.say(level, message, {})
         elif level is io.Level.WARN:
             self.get_logger().warn(message)
         else:
             self.get_logger().info(message)
 
-    def _status(self, level, message, values):
+    def say(self, level, message, values):
+        """Publish a mission status (``values``: what it says, as text) on diagnostics."""
         self.pubs['diagnostics'].publish(conv.diagnostic_array(conv.diagnostic_status(
             conv.diagnostic_level(level), ifc.MISSION_STATUS, message, values),
             self.get_clock().now().to_msg()))

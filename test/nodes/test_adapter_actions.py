@@ -136,7 +136,7 @@ def test_navigate_through_poses_is_one_mission_and_its_feedback_says_what_is_lef
     goals, _, first = actions._goals_of(ifc.NAVIGATE_THROUGH_POSES, goal)
     assert goals == [(1, 0), (1, 1), (0, 1)] and first == 0 and goal_count(goal) == 3
     handle = _bound(actions, ifc.NAVIGATE_THROUGH_POSES, goals, _Clock(102.0), 101.0)
-    actions.status_released({'mission': '7', 'goal_index': '2', 'end_pose': '1.0 0.2 0.0',
+    actions.status_released(0, '', {'mission': '7', 'goal_index': '2', 'end_pose': '1.0 0.2 0.0',
                              'pose': '0.0 0.0 0.0'})
     sent = handle.sent[-1]
     assert sent.number_of_poses_remaining == 2
@@ -150,11 +150,46 @@ def test_a_feedback_is_timed_by_its_outcome_when_the_clock_lags_behind_it(action
     """The simulator's clock and its outcomes travel apart: a gait's feedback says the time
     its outcome was stamped at, not that none has passed since the goal."""
     handle = _bound(actions, ifc.NAVIGATE_TO_POSE, [(1.0, 0.0)], _Clock(100.0), 103.5)
-    actions.status_released({'mission': '7', 'goal_index': '1', 'end_pose': '0.5 0.0 0.0'})
+    actions.status_released(0, '', {'mission': '7', 'goal_index': '1', 'end_pose': '0.5 0.0 0.0'})
     sent = handle.sent[-1]
     assert sent.navigation_time.sec == 3 and sent.navigation_time.nanosec == 500_000_000
     assert sent.current_pose.header.stamp.sec == 103
     # An outcome stamped on another clock (far ahead) does not take over the node's.
     handle = _bound(actions, ifc.NAVIGATE_TO_POSE, [(1.0, 0.0)], _Clock(104.0), 1e9)
-    actions.status_released({'mission': '7', 'goal_index': '1', 'end_pose': '0.5 0.0 0.0'})
+    actions.status_released(0, '', {'mission': '7', 'goal_index': '1', 'end_pose': '0.5 0.0 0.0'})
     assert handle.sent[-1].navigation_time.sec == 4
+
+
+
+def test_a_status_said_before_its_goal_was_bound_is_said_again_with_the_goals_id(actions):
+    """The mission's first status can go out within the event that starts it (no save
+    pending), before the goal is bound to its mission: the client waiting for a status that
+    names its goal hears it again, with the id. A step is never said twice."""
+    from unique_identifier_msgs.msg import UUID
+
+    from sela_ros.nodes.adapter_actions import goal_id_text
+
+    said = []
+    stepper = SimpleNamespace(mission_id=7, goal=None, running=lambda: True)
+
+    def feed(event):  # the stepper starts mission 8; its status is released at once
+        stepper.mission_id, stepper.goal = 8, event.goal
+        actions.status_released(1, 'planning', {'mission': '8', 'goal_id': '',
+                                                'state': 'planning'})
+        actions.status_released(1, 'step 1', {'mission': '8', 'goal_id': '', 'step': '1'})
+
+    actions.node = SimpleNamespace(
+        frame_id='odom', map=None, get_clock=lambda: _Clock(5.0), stepper=stepper, feed=feed,
+        sim_check=SimpleNamespace(poll=lambda: None),
+        say=lambda level, message, values: said.append((level, message, values)))
+    actions.bindings, actions._unbound, actions._said_unbound = {}, {}, {}
+    handle = _Handle()
+    handle.request = NavigateToPose.Goal(pose=conv.pose_stamped((1.0, 0.0), frame_id='odom'))
+    handle.goal_id = UUID(uuid=list(range(16)))
+    handle.is_cancel_requested = False
+    run = actions._run(handle)
+    run.send(None)  # up to the wait for its mission's end
+    assert 8 in actions.bindings
+    assert said == [(1, 'planning', {'mission': '8', 'state': 'planning',
+                                     'goal_id': goal_id_text(handle)})]
+    run.close()
