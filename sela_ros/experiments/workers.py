@@ -15,7 +15,7 @@ def load_priors(value, archive_path, archive, damage=None, leave_out_own=False):
     if priors is not None and leave_out_own:
         second = set(priors.names[len(priors.first_tier()):])
         own = own_tables(priors, damage)
-        for name in own_and_near(priors, damage):
+        for name in _and_near(priors, own):
             if name in own or name in second:
                 priors = priors.without(name)
     return priors
@@ -38,9 +38,12 @@ def own_tables(priors, damage):
 def own_and_near(priors, damage):
     """The names of the tables of ``priors`` that are ``damage`` and of those within
     :data:`NEAR_DUPLICATE` of one of them (``DamagePriors.near``), in the priors' order."""
-    out = set()
-    for name in own_tables(priors, damage):
-        out.update(priors.near(name))
+    return _and_near(priors, own_tables(priors, damage))
+
+
+def _and_near(priors, names):
+    """``names`` and the tables near each (``DamagePriors.near``), in the priors' order."""
+    out = {n for name in names for n in priors.near(name)}
     return [n for n in priors.names if n in out]
 
 

@@ -236,9 +236,9 @@ class DamagePriors:
         :data:`RESIDUAL_SCALE`) of the table ``name``'s, ``name`` itself among them: its near
         duplicates, which a damage measured as if nobody foresaw it leaves out too. Raises
         KeyError for a name it does not hold."""
-        i = self.names.index(name) if name in self.names else None
-        if i is None:
+        if name not in self.names:
             raise KeyError(name)
+        i = self.names.index(name)
         out = []
         for j, other in enumerate(self.names):
             stand = ~(self.fallen[i] | self.fallen[j])
