@@ -441,6 +441,45 @@ def test_the_second_tier_is_used_only_once_it_reproduced_the_standing_starts():
     assert picks[0].prior == 'remove:front_left'
 
 
+def test_a_second_tier_table_tells_the_fall_model_its_falls_not_that_this_robot_rarely_falls():
+    """A second-tier table in use on a few standing starts may be another damage than the
+    robot's (a leg shortened for a leg lost): the gaits it says fall are feared as under
+    any table, but its support prior, that gaits rarely fall on its damage, is not given
+    to the fall model; a first-tier table gives both."""
+    candidates, intact, priors, _ = world()
+    stability = np.linspace(-1.0, 1.0, M)
+    pair = intact * 0.15
+    fallen = np.zeros((3, M), bool)
+    fallen[:2] = priors.fallen
+    fallen[2, 250:255] = True  # five gaits of little use fall on the second tier's damage
+    both = DamagePriors((*priors.names, 'remove:front_left,remove:rear_left'),
+                        np.concatenate([priors.generic_reward, pair[None]]), fallen,
+                        priors.archive_checksum, None, None, np.array([False, False, True]))
+    config = SELAConfig(gp_kernel_sigma=0.3, acquisition_ucb_alpha=0.0, fall_risk_cost=0.0)
+    waypoint = np.array([0.6, 0.0])
+    sela = SELA(candidates, intact, SE2Motion(), goal=(5.0, 0.0), config=config,
+                priors=both, stability=stability)
+    first_tier = sela._posterior(both.first_tier().select(intact, [3], intact[[3]] * 0.5,
+                                                          standing=[True]))[2]
+    assert first_tier[1] is not None  # a first-tier table's support prior is given
+    for standing in (True, False):
+        decision = sela.ask(np.zeros(3), waypoint=waypoint)
+        sela.tell_fall(decision.index, False)
+        sela.tell(decision.index, pair[decision.index], standing_start=standing)
+    decision = sela.ask(np.zeros(3), waypoint=waypoint)
+    assert decision.prior == 'remove:front_left,remove:rear_left'
+    falls, support, _ = sela._posterior(sela.select_prior())[2]
+    assert support is None and np.array_equal(falls, fallen[2])
+    risk = sela.fall_risk.risk(falls, support)
+    assert decision.fall_risk == pytest.approx(risk[decision.index])
+    # What the table's support prior would have said: that the fragile gaits (the less
+    # stable half) rarely fall either.
+    supported = sela.fall_risk.risk(falls, sela.fall_risk.table_support(falls))
+    fragile = np.arange(M // 2)
+    assert np.all(supported[fragile] < risk[fragile])
+    assert np.mean(risk[fragile]) > 2 * np.mean(supported[fragile])
+
+
 def test_a_share_of_the_standing_starts_reproduced_is_enough():
     """A damage that tips the robot makes even a standing start vary: the table that
     reproduced a third of the standing starts has reproduced them (the misfit cap of a
