@@ -397,12 +397,13 @@ class SELA:
         arguments of :meth:`FallRisk.risk` that the selected damage prior gives (its falls,
         its support prior, and its chained runs if it reproduced the robot's standing
         starts: those of another damage mislead), ``()`` for the intact map. A second-tier
-        table gives its falls alone: it is in use on the strength of a few standing starts,
-        often on a damage it does not hold (a leg removed read as a leg shortened), and its
-        support prior, weighed as :data:`~sela_ros.core.learning.fall_risk.TABLE_EVIDENCE`
-        gaits, would tell the fall model that this robot rarely falls wherever the table
-        says no gait does; the generic prior stays, moved by the robot's own steps
-        (docs/learning_the_damage.md, "The fall model under a second-tier table"). The variance
+        table gives its falls alone once the robot has fallen on a gait it says stands: it
+        is in use on the strength of a few standing starts, then on a damage it does not
+        hold (a leg removed read as a leg shortened), and its support prior, weighed as
+        :data:`~sela_ros.core.learning.fall_risk.TABLE_EVIDENCE` gaits, would go on telling
+        the fall model that this robot rarely falls; the generic prior takes its place,
+        moved by the robot's own steps (docs/learning_the_damage.md, "The fall model under
+        a second-tier table"). The variance
         is on the configured kernel's scale (a share of ``gp.kernel.variance``) whatever
         signal variance was learnt (``gp.hyper.sd``): the choice reads it as such."""
         prior = self._effective_prior(selection)
@@ -420,13 +421,18 @@ class SELA:
         tables = self._tables()
         fallen = tables.fallen[selection.index]
         support = None
-        if not tables.second_tier[selection.index]:
+        if not tables.second_tier[selection.index] or not self._fell_where_stands(fallen):
             if selection.index not in self._support:
                 self._support[selection.index] = self._fall.table_support(fallen)
             support = self._support[selection.index]
         return (self._gp.mean_columns_with_prior(prior), var,
                 (fallen.astype(float), support,
                  tables.chained(selection.index) if selection.reproduced else None))
+
+    def _fell_where_stands(self, fallen) -> bool:
+        """Has the robot fallen on a gait that a table's ``fallen`` (M,) says stands?"""
+        fall_idx, fell = self._fall.observations
+        return bool((fell & ~fallen[fall_idx]).any())
 
     def _choice_variance(self):
         """``(M,)`` the posterior variance the choice reads, on the configured kernel's
