@@ -403,9 +403,9 @@ class SELA:
         :data:`~sela_ros.core.learning.fall_risk.TABLE_EVIDENCE` gaits, would go on telling
         the fall model that this robot rarely falls; the generic prior takes its place,
         moved by the robot's own steps (docs/learning_the_damage.md, "The fall model under
-        a second-tier table"). The variance
-        is on the configured kernel's scale (a share of ``gp.kernel.variance``) whatever
-        signal variance was learnt (``gp.hyper.sd``): the choice reads it as such."""
+        a second-tier table"). The variance is on the configured kernel's scale (a share of
+        ``gp.kernel.variance``) whatever signal variance was learnt (``gp.hyper.sd``): the
+        choice reads it as such."""
         prior = self._effective_prior(selection)
         self._learn_hyper(prior)
         mu_t, _ = self._gp.query_columns()
