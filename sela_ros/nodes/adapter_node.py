@@ -243,7 +243,7 @@ class SelaAdapter(Node):
             if param.name == 'archive':
                 problem, path, archive = adapter_support.archive_change(
                     param.value, self.archive_path if self.archive is not None else None,
-                    self.stepper, self.get_name())
+                    self.stepper, self.get_name(), self.sim_check.mismatch)
                 if problem:
                     return SetParametersResult(successful=False, reason=problem)
                 if archive is None:

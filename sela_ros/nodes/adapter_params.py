@@ -9,7 +9,8 @@ from sela_ros.nodes.params import Spec
 
 PARAMETERS = (
     Spec('archive', '', "the MAP-Elites archive (.npz); '' = the one shipped with the package "
-         "(the 8-D map), '8d' / '2d' = the shipped ones by name; can change between steps"),
+         "(the 8-D map), '8d' / '2d' = the shipped ones by name; can change between steps, to "
+         "one built for the simulator's physics (sim_bridge's archive)"),
     Spec('gp.kernel.sigma', AUTO, "kernel length on normalised descriptors; auto = the "
          "archive's (0.1, the paper's, for a 2-D map; 0.3 for the 8-D map)", low=0.0,
          high=100.0, kind='double', word=AUTO, read_only=True),

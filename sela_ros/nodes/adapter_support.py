@@ -67,14 +67,16 @@ def carried_over(old):
     return events + [io.GoalsReceived((tuple(old.goal), *map(tuple, old.goals_left)))]
 
 
-def archive_change(value, in_use, stepper, node_name):
+def archive_change(value, in_use, stepper, node_name, mismatch=None):
     """Can the ``archive`` parameter become ``value`` now? ``(problem, path, archive)``:
     ``problem`` says why not; else ``archive`` is the file loaded from ``path`` to use, or
     None when it is the file in use (``in_use``: kept, with what was learned on it).
 
-    A file that cannot be loaded is refused with its problem, whatever the adapter is doing.
-    Another file would make what was learned meaningless (its indices are the old archive's
-    gaits): refused mid-step, and while anything is learned, until ``~/clear``.
+    A file that cannot be loaded, or built for other physics than the simulator's
+    (``mismatch(archive, path)``: the reason, or None), is refused with its problem,
+    whatever the adapter is doing. Another file would make what was learned meaningless
+    (its indices are the old archive's gaits): refused mid-step, and while anything is
+    learned, until ``~/clear``.
     """
     path = resolve_archive_path(value)
     if in_use is not None and same_file(path, in_use):
@@ -83,6 +85,10 @@ def archive_change(value, in_use, stepper, node_name):
         archive = load_archive(path)
     except ArchiveError as exc:
         return str(exc), path, None
+    problem = mismatch(archive, path) if mismatch is not None else None
+    if problem:
+        return (f'archive {path} refused: {problem}, set when it started: start both '
+                'with the same archive (ros2 launch sela_ros ... archive:=NAME)'), path, None
     if stepper is not None and stepper.state not in (io.State.IDLE, io.State.DONE,
                                                      io.State.READY):
         return (f'archive {path} refused: it cannot change mid-step; set it again between '

@@ -27,6 +27,7 @@ class SimulatorCheck:
         self.on_hold = on_hold
         self.logger = node.get_logger()
         self.archive = self.source = None
+        self.settings = None  # the simulator's, once it answered
         self.asked = False
         self._pending = None  # the question not answered yet, and when it was asked
         self._asked_at = 0.0
@@ -80,12 +81,22 @@ class SimulatorCheck:
         settings['solver_iterations'] = (
             values[2].integer_value if values[2].type == ParameterType.PARAMETER_INTEGER
             else SETTING_DEFAULTS['solver_iterations'])
+        self.settings = settings
+        problem = self.mismatch(archive, self.source)
+        self.on_hold(None if problem is None else
+                     f'{problem}: no gait is sent until the archive parameter names a '
+                     'matching archive.')
+
+    def mismatch(self, archive, source):
+        """Why ``archive`` (read from ``source``) does not match the simulator's physics as
+        it last answered, or None (it matches, or the simulator has not answered yet)."""
+        if self.settings is None:
+            return None
+        settings = self.settings
         try:
-            check_settings(archive.metadata, settings, source=self.source)
+            check_settings(archive.metadata, settings, source=source)
         except ArchiveError as exc:
-            self.on_hold(f'{exc} The simulator runs sim.dt {settings["dt"]:g} s, '
-                         f'sim.gait_duration {settings["gait_duration"]:g} s, '
-                         f'sim.solver_iterations {settings["solver_iterations"]}: no gait is '
-                         'sent until the archive parameter names a matching archive.')
-            return
-        self.on_hold(None)
+            return (f'{exc} The simulator runs sim.dt {settings["dt"]:g} s, '
+                    f'sim.gait_duration {settings["gait_duration"]:g} s, '
+                    f'sim.solver_iterations {settings["solver_iterations"]}')
+        return None

@@ -369,6 +369,22 @@ def test_archive_built_for_another_simulator_is_refused_with_the_reason(graph):
     assert all(nodes.alive().values()), nodes.logs()
 
 
+def test_an_archive_of_other_physics_than_the_simulators_is_refused_when_set(graph):
+    nodes, client = graph
+    diag = Diagnostics(client)
+    diag.go_to_pose(0.5, 0.0)
+    # A step taken: the simulator has told the adapter its physics.
+    client.spin_until(lambda: diag.steps, 120, 'a first step')
+    result = _set(client, 'sela_adapter', 'archive', '2d', ParameterType.PARAMETER_STRING)
+    assert not result.successful
+    assert 'other simulator settings' in result.reason, result.reason
+    assert 'archive:=' in result.reason, result.reason
+    steps = len(diag.steps)
+    diag.go_to_pose(0.0, 0.5)  # the archive in use goes on
+    client.spin_until(lambda: len(diag.steps) > steps, 120, 'a step on the archive in use')
+    assert all(nodes.alive().values()), nodes.logs()
+
+
 def test_a_step_is_announced_only_once_saved_and_a_failed_save_is_an_error(tmp_path):
     # Learning from the first step: every step adds an observation to the state file.
     nodes = NodeProcesses({'sela_adapter': {'adapt_on_start': True}})

@@ -38,6 +38,20 @@ def test_a_good_file_is_refused_mid_step_and_while_something_is_learned():
     assert reason is None and len(archive) > 0 and str(path) == good
 
 
+def test_a_file_built_for_other_physics_than_the_simulators_is_refused_first():
+    good = str(default_archive_path())
+    stepper = SimpleNamespace(state=io.State.EXECUTING,
+                              sela=SimpleNamespace(observations=(np.zeros(2),)))
+    reason, _, archive = adapter_support.archive_change(
+        good, '/nowhere/in_use.npz', stepper, 'sela_adapter',
+        lambda archive, path: f'{path} was built with other simulator settings')
+    assert archive is None and 'other simulator settings' in reason
+    assert 'archive:=' in reason and 'mid-step' not in reason
+    reason, _, archive = adapter_support.archive_change(
+        good, '/nowhere/in_use.npz', None, 'sela_adapter', lambda archive, path: None)
+    assert reason is None and len(archive) > 0
+
+
 def test_the_file_in_use_is_kept_and_not_loaded_again(tmp_path):
     in_use = tmp_path / 'in_use.npz'
     in_use.write_bytes(b'not even an archive')  # never read: it is the file in use

@@ -89,3 +89,18 @@ def test_a_mismatch_answered_holds_the_gaits_with_the_reason(monkeypatch):
     check.poll()
     node.client.sent[1].set_result(answer(0.02, 3.0, 30))
     assert holds[-1] is None
+
+
+def test_once_answered_an_archive_is_checked_at_once_against_the_simulators_physics():
+    node, holds = FakeNode(), []
+    check = SimulatorCheck(node, 'sim_bridge', holds.append)
+    other = SimpleNamespace(metadata={**METADATA, 'solver_iterations': 50})
+    assert check.mismatch(other, 'other.npz') is None  # not answered yet: nothing to say
+    check.use(SimpleNamespace(metadata=METADATA), 'archive.npz')
+    check.poll()
+    node.client.sent[0].set_result(answer(0.01, 3.0, 30))
+    assert holds[-1] is None
+    assert check.mismatch(SimpleNamespace(metadata=METADATA), 'same.npz') is None
+    reason = check.mismatch(other, 'other.npz')
+    assert 'other.npz was built with other simulator settings' in reason
+    assert 'sim.solver_iterations 30' in reason
