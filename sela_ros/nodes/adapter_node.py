@@ -290,8 +290,9 @@ class SelaAdapter(Node):
             restored['stepper'] = stepper
 
         limits = OutcomeLimits(self.stepper.config.max_displacement)
-        state, problem = persistence.resume_state(path, len(self.archive), restore,
-                                                  limits=limits)
+        state, problem = persistence.resume_state(
+            path, len(self.archive), restore, limits=limits,
+            learned_on=persistence.learned_on(self.values['simulator_node']))
         if problem:
             self.report(io.Level.ERROR, problem)
             return
@@ -345,8 +346,9 @@ class SelaAdapter(Node):
                 # The record of a gait about to be sent must only survive a crash of this
                 # process (it is written again, fsync'ed, with the outcome): no fsync, ~1 ms.
                 ahead = i + 1 < len(commands) and isinstance(commands[i + 1], io.SendGait)
-                self.store.save(persistence.state_document(len(self.archive), c.snapshot),
-                                sync=not ahead)
+                self.store.save(persistence.state_document(
+                    len(self.archive), c.snapshot,
+                    persistence.learned_on(self.values['simulator_node'])), sync=not ahead)
 
     @guard(what='announcement')
     def _release_saved(self):

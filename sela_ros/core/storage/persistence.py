@@ -109,18 +109,30 @@ def path_problem(path):
     return f'{path} is {kind}, expected a regular file (or none yet)'
 
 
-def state_document(archive_size, snapshot):
+def state_document(archive_size, snapshot, learned_on=None):
     """The state file's content: ``snapshot`` (``sela`` and ``mission`` sections) tagged with
-    the format and the size of the archive it was learned on."""
-    return {'format': STATE_FORMAT, 'archive_size': int(archive_size), **snapshot}
+    the format, the size of the archive it was learned on and, where given, what it was
+    learned on (``learned_on``: :func:`learned_on`)."""
+    document = {'format': STATE_FORMAT, 'archive_size': int(archive_size), **snapshot}
+    if learned_on is not None:
+        document['learned_on'] = learned_on
+    return document
+
+
+def learned_on(simulator_node):
+    """What an adapter learns on: ``simulator <name>`` where it checks its archive against a
+    simulator node, ``robot`` where it has none to check (a real robot)."""
+    return f'simulator {simulator_node}' if simulator_node else 'robot'
 
 
 def _no_constant(name):
     raise ValueError(f'{name} is not a number JSON allows')
 
 
-def load_state(path, archive_size, gr_dim=3, limits=None):
-    """Read an adapter state file written for an archive of ``archive_size`` behaviours.
+def load_state(path, archive_size, gr_dim=3, limits=None, learned_on=None):
+    """Read an adapter state file written for an archive of ``archive_size`` behaviours (and,
+    where ``learned_on`` is given, learned on it: a file learned on a simulator does not
+    resume on a real robot, nor the other way; a file that does not say resumes anywhere).
 
     Everything the learner will replay is checked here, before any of it is used: the
     format, the archive size, the observations (integer indices inside the archive, one
@@ -150,6 +162,11 @@ def load_state(path, archive_size, gr_dim=3, limits=None):
     if size != archive_size:
         raise StateError(f'state file {path} was written for an archive of {size} behaviours, '
                          f'the loaded archive has {archive_size}')
+    source = state.get('learned_on')
+    if learned_on is not None and source is not None and source != learned_on:
+        raise StateError(f'state file {path} was learned on {_said(source)}, and this adapter '
+                         f'learns on {_said(learned_on)}: what one taught would mislead the '
+                         'other')
     for key in ('sela', 'mission'):
         if not isinstance(state.get(key), dict):
             raise StateError(f'state file {path} has no {key!r} section')
@@ -157,6 +174,14 @@ def load_state(path, archive_size, gr_dim=3, limits=None):
     if problem:
         raise StateError(f'state file {path}: sela.{problem}')
     return state
+
+
+def _said(source):
+    """A ``learned_on`` value as a sentence says it."""
+    if source == 'robot':
+        return 'a robot (no simulator node)'
+    kind, _, name = str(source).partition(' ')
+    return f'the simulator {name!r}' if kind == 'simulator' and name else repr(source)
 
 
 def _learner_problem(sela, archive_size, gr_dim, limits=None):
@@ -236,7 +261,7 @@ def set_aside(path, reason=None):
     return target
 
 
-def resume_state(path, archive_size, restore, gr_dim=3, limits=None):
+def resume_state(path, archive_size, restore, gr_dim=3, limits=None, learned_on=None):
     """Read the state file and hand it to ``restore(state)``; never fails on a bad file.
 
     A file that cannot be used, for any reason (:func:`load_state` refuses it, or ``restore``
@@ -249,7 +274,7 @@ def resume_state(path, archive_size, restore, gr_dim=3, limits=None):
         ``(None, message)`` when it was set aside (the message says why and where it is).
     """
     try:
-        state = load_state(path, archive_size, gr_dim, limits)
+        state = load_state(path, archive_size, gr_dim, limits, learned_on)
         if state is None:
             return None, None
         restore(state)

@@ -13,9 +13,11 @@ from sela_ros.core.storage.persistence import (
     StateError,
     StateStore,
     atomic_write_json,
+    learned_on,
     load_state,
     path_problem,
     resume_state,
+    state_document,
 )
 
 SIZE = 20
@@ -115,6 +117,26 @@ def test_an_unusable_state_is_set_aside_once_never_a_crash_loop(tmp_path, name):
         else:
             assert message is None
         assert not path.exists()
+
+
+def test_what_a_simulator_taught_does_not_resume_on_a_robot_nor_the_other_way(tmp_path):
+    path = tmp_path / 'state.json'
+    simulated, robot = learned_on('sim_bridge'), learned_on('')
+    assert (simulated, robot) == ('simulator sim_bridge', 'robot')
+    atomic_write_json(path, state_document(SIZE, {k: v for k, v in _good().items()
+                                                  if k in ('sela', 'mission')}, simulated))
+    assert load_state(path, SIZE, learned_on=simulated)['learned_on'] == simulated
+    assert load_state(path, SIZE)['mission'] == {'steps': 2}  # asked nothing: resumes
+    with pytest.raises(StateError, match="learned on the simulator 'sim_bridge', and this "
+                                         r'adapter learns on a robot \(no simulator node\)'):
+        load_state(path, SIZE, learned_on=robot)
+    restored, message = resume_state(path, SIZE, lambda s: None, learned_on=robot)
+    assert restored is None and 'kept it as' in message  # set aside: nothing learned lost
+    kept = next(tmp_path.glob('state.json.unusable-*[0-9]'))
+    assert json.loads(kept.read_text())['learned_on'] == simulated
+    # A file that does not say what it was learned on resumes anywhere.
+    atomic_write_json(path, _good())
+    assert load_state(path, SIZE, learned_on=robot)['mission'] == {'steps': 2}
 
 
 def test_older_unusable_files_are_never_overwritten(tmp_path):
