@@ -11,8 +11,11 @@ from sela_ros.experiments.baselines import METHODS
 #: goal tolerance), and its claims ("almost optimal" steps) hold with a std of 0.01 m
 #: instead (docs/toy_results.md). `--noise-std 0.1` runs the literal reading.
 DEFAULT_NOISE_STD = 0.01
-NOISE_HELP = ("std (m) of the noise on observed positions (default %(default)s; the paper's "
-              "'sigma^2 = 0.01' read literally is 0.1, see docs/toy_results.md)")
+#: The largest std (m) of that noise: the sim_bridge node's ``observation.noise_std`` range.
+#: Beyond it a position says nothing of a gait (the fastest moves 0.7 m) and overflows.
+MAX_NOISE_STD = 1.0
+NOISE_HELP = ("std (m) of the noise on observed positions, 0 to 1 (default %(default)s; the "
+              "paper's 'sigma^2 = 0.01' read literally is 0.1, see docs/toy_results.md)")
 
 
 def non_negative_float(text):
@@ -29,6 +32,16 @@ def positive_float(text):
     value = non_negative_float(text)
     if value == 0:
         raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
+    return value
+
+
+def noise_std(text):
+    """``--noise-std``: a std (m) in [0, :data:`MAX_NOISE_STD`]."""
+    value = non_negative_float(text)
+    if value > MAX_NOISE_STD:
+        raise argparse.ArgumentTypeError(
+            f'expected a std of at most {MAX_NOISE_STD:g} m (the sim_bridge node\'s '
+            f'observation.noise_std range), got {text!r}')
     return value
 
 

@@ -69,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--methods', type=arguments.method_list,
                         default=list(hexapod.HEXAPOD_METHODS),
                         help='comma-separated methods (default: %(default)s)')
-    parser.add_argument('--noise-std', type=arguments.non_negative_float,
+    parser.add_argument('--noise-std', type=arguments.noise_std,
                         default=arguments.DEFAULT_NOISE_STD, help=arguments.NOISE_HELP)
     parser.add_argument('--lookahead', type=arguments.positive_float,
                         default=hexapod.DEFAULT_LOOKAHEAD, help='waypoint distance (m)')

@@ -6,10 +6,10 @@ Every replicate runs every method on its own simulated hexapod (PyBullet, in the
 process), damaged from the start, standing at the origin. Within a replicate the robot is
 never reset: learning trials (IT&E) move it too, and a fallen robot gets up where it lies
 (the gait counts). Position observations carry Gaussian noise (``--noise-std``, default
-0.1 m: the paper's sigma^2 = 0.01). SELA runs the ``sela_adapter`` node's decision loop
-(:func:`~sela_ros.core.mission.run_mission`: its stepper, damage detector and defaults)
-and, as the node, judges the goal on the observed pose; the baselines judge it on the true
-pose (eps 0.1 m).
+0.01 m; the paper's sigma^2 = 0.01 read literally is 0.1 m). SELA runs the
+``sela_adapter`` node's decision loop (:func:`~sela_ros.core.mission.run_mission`: its
+stepper, damage detector and defaults) and, as the node, judges the goal on the observed
+pose; the baselines judge it on the true pose (eps 0.1 m).
 
 Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measurements):
 
@@ -156,7 +156,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         default=DEFAULT_INFLATION,
                         help='with --map: clearance kept from obstacles (m, default '
                              '%(default)s, as the planner node)')
-    parser.add_argument('--noise-std', type=arguments.non_negative_float,
+    parser.add_argument('--noise-std', type=arguments.noise_std,
                         default=arguments.DEFAULT_NOISE_STD, help=arguments.NOISE_HELP)
     parser.add_argument('--lookahead', type=arguments.positive_float, default=DEFAULT_LOOKAHEAD,
                         help='reward selection layer: waypoint distance along the straight '

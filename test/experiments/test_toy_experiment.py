@@ -69,3 +69,17 @@ def test_an_unexpected_error_of_a_scenario_comes_through_as_itself(tmp_path, mon
     monkeypatch.setattr(toy, 'run', broken)
     with pytest.raises(RuntimeError, match='the simulator broke'):
         main(['toy', '--replicates', '1', '--quiet', '--out', str(tmp_path / 'out')])
+
+
+def test_noise_beyond_the_nodes_range_is_a_usage_error_and_noise_within_it_a_run(tmp_path,
+                                                                                  capsys):
+    base = ['toy', '--replicates', '2', '--max-steps', '5', '--quiet', '--methods', 'sela']
+    for noise in ('1.5', '100', '1e300'):
+        with pytest.raises(SystemExit) as exc:
+            main([*base, '--out', str(tmp_path / 'refused'), '--noise-std', noise])
+        assert exc.value.code == 2
+        assert 'at most 1 m' in capsys.readouterr().err
+    # 1 m: most outcomes are implausible (refused, as the node refuses them), yet it runs.
+    assert main([*base, '--out', str(tmp_path / 'noisy'), '--noise-std', '1']) == 0
+    doc = json.loads((tmp_path / 'noisy' / 'results.json').read_text())
+    assert doc['parameters']['noise_std'] == 1.0 and len(doc['methods']['sela']['steps']) == 2
