@@ -75,12 +75,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         default=hexapod.DEFAULT_LOOKAHEAD, help='waypoint distance (m)')
     parser.add_argument('--fall-risk', type=arguments.positive_float, default=None,
                         help='fall.risk.threshold of SELA (default: its default)')
-    parser.add_argument('--kernel-sigma', type=arguments.positive_float, default=None,
+    parser.add_argument('--kernel-sigma', type=arguments.kernel_sigma, default=None,
                         help="gp.kernel.sigma on normalised descriptors (default: each "
                              "archive's: 0.1 for the 2-D map, 0.3 for the 8-D map)")
     parser.add_argument('--fall-cost', type=arguments.non_negative_float, default=None,
                         help="fall.risk.cost of SELA (default: its default)")
-    parser.add_argument('--fall-kernel-sigma', type=arguments.positive_float, default=None,
+    parser.add_argument('--fall-kernel-sigma', type=arguments.kernel_sigma, default=None,
                         help="fall.kernel.sigma: kernel length of the fall GP (default: the "
                              "archive's: 0.1 on a 2-D map, 0.12 on the 8-D map)")
     parser.add_argument('--alpha', type=arguments.non_negative_float,

@@ -161,14 +161,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--lookahead', type=arguments.positive_float, default=DEFAULT_LOOKAHEAD,
                         help='reward selection layer: waypoint distance along the straight '
                              'path to the goal (m, default %(default)s)')
-    parser.add_argument('--kernel-sigma', type=arguments.positive_float, default=None,
+    parser.add_argument('--kernel-sigma', type=arguments.kernel_sigma, default=None,
                         help="gp.kernel.sigma on normalised descriptors (default: the "
                              "archive's: 0.1, the paper's, for the 2-D map; 0.3 for the 8-D "
                              "map)")
     parser.add_argument('--fall-cost', type=arguments.non_negative_float, default=None,
                         help="fall.risk.cost: metres of progress a fall is worth in SELA's "
                              'choice (default: SELA\'s default)')
-    parser.add_argument('--fall-kernel-sigma', type=arguments.positive_float, default=None,
+    parser.add_argument('--fall-kernel-sigma', type=arguments.kernel_sigma, default=None,
                         help="fall.kernel.sigma: kernel length of the fall GP (default: the "
                              "archive's: 0.1 on a 2-D map, 0.12 on the 8-D map)")
     parser.add_argument('--alpha', type=arguments.non_negative_float,

@@ -200,3 +200,37 @@ def test_a_replicate_told_a_prior_mean_chooses_by_it(archive_path):
     table = np.zeros_like(archive.generic_reward)
     table[only, 0] = 0.6
     assert first(table) == [only]
+
+
+def _usage_error(argv, capsys):
+    """The last line of the usage error ``argv`` gives (exit code 2, no traceback)."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2, err
+    assert 'Traceback' not in err
+    return err.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize('scenario', ['hexapod', 'campaign'])
+@pytest.mark.parametrize('option', ['--kernel-sigma', '--fall-kernel-sigma'])
+@pytest.mark.parametrize('value', ['1e-300', '1e-160', '0.0009', '101'])
+def test_kernel_lengths_out_of_range_are_usage_errors(scenario, option, value, capsys):
+    from sela_ros.experiments.cli import build_parser
+
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args([scenario, '--replicates', '1', '--out', 'x', option, value])
+    assert exc.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f'{option}: expected a kernel length in [0.001, 100]' in error
+
+
+def test_the_shortest_kernel_length_taken_runs(archive_path, tmp_path):
+    out = tmp_path / 'short'
+    assert main(['hexapod', '--replicates', '1', '--out', str(out), '--archive',
+                 str(archive_path), '--methods', 'sela', '--max-steps', '2', '--quiet',
+                 '--kernel-sigma', '0.001', '--fall-kernel-sigma', '0.001']) == 0
+    doc = json.loads((out / 'results.json').read_text())
+    assert doc['parameters']['gp.kernel.sigma'] == 0.001
+    assert doc['parameters']['fall.kernel.sigma'] == 0.001
+    assert 1 <= doc['methods']['sela']['steps'][0] <= 2
