@@ -115,6 +115,11 @@ def finish_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
             description.default_damage if args.damage is None else args.damage).canonical()
     except DamageSpecError as err:
         parser.error(f'--damage: {err}')
+    try:
+        map_path, _, inflation, goal, via = mission(args)
+        check_goals([*via, goal], map_path, inflation)
+    except PlanningError as err:
+        parser.error(str(err))
 
 
 def _course_map(text):
@@ -276,14 +281,37 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
 ARGUMENT_ERRORS = (PlanningError,)
 
 
-def check_goals(goals, map_path, inflation):
-    """Refuse goals the planner could not plan to, as the nodes refuse them."""
-    grid, _ = worker_planner(map_path, inflation)
+#: Where every run starts (x, y): the origin of the map.
+START = (0.0, 0.0)
+
+
+def check_goals(goals, map_path, inflation, start=START):
+    """Refuse a mission the planner could not plan, before anything runs: a start or a goal
+    off the map or inside an obstacle (as the nodes refuse a goal), or a goal with no path
+    to it from the start (through the goals before it) ``inflation`` metres clear of
+    obstacles. Raises :class:`PlanningError` saying which."""
+    grid, planner = worker_planner(map_path, inflation)
+    on = f'the map {map_path}' if map_path else "the planner's default map"
+    hint = ('give another --map, or goals on it' if map_path
+            else 'give a map that holds it: --map')
+    problem = grid.goal_problem(start)
+    if problem:
+        raise PlanningError(f'the start ({start[0]:g}, {start[1]:g}), where every run begins, '
+                            f'is {problem} on {on}: give a map on which it is free')
     for goal in goals:
         problem = grid.goal_problem(goal)
         if problem:
             raise PlanningError(f'goal ({goal[0]:g}, {goal[1]:g}) is {problem}: the planner '
-                                'refuses it (give a map that holds it: --map)')
+                                f'refuses it ({hint})')
+    previous, origin = start, 'the start'
+    for goal in goals:
+        try:
+            planner(previous, goal)
+        except PlanningError as err:
+            raise PlanningError(f'goal ({goal[0]:g}, {goal[1]:g}) cannot be reached from '
+                                f'{origin} ({previous[0]:g}, {previous[1]:g}) on {on} with '
+                                f'--inflation {inflation:g} m: {err}') from None
+        previous, origin = goal, 'the goal before it'
 
 
 @dataclass(frozen=True)
@@ -428,6 +456,18 @@ def step_detail(record) -> dict:
     return out
 
 
+def mission(args):
+    """``(map path, Course, inflation, goal, via)`` of a run: on a course without ``--goal``
+    the course's mission, its goals in order (``via`` those before the last); else the goal
+    alone (default 2, 2)."""
+    # Callers that build args by hand (the campaign) may leave out the map options.
+    map_path, course = getattr(args, 'map', None) or (None, None)
+    inflation = getattr(args, 'inflation', DEFAULT_INFLATION)
+    goal = args.goal or (list(course.goals[-1]) if course else [2.0, 2.0])
+    via = [list(g) for g in course.goals[:-1]] if course and not args.goal else []
+    return map_path, course, inflation, goal, via
+
+
 def run(args, progress=None) -> dict:
     """Run the experiment described by ``args``; returns the results.json document."""
     from sela_ros.core.storage import load_archive
@@ -438,6 +478,12 @@ def run(args, progress=None) -> dict:
     archive = load_archive(args.archive)
     robot = getattr(args, 'robot', None) or robot_of(archive.metadata)
     settings = archive.simulator_settings
+    map_path, course, inflation, goal, via = mission(args)
+    check_goals([*via, goal], map_path, inflation)
+    # The parameters every run uses (the archive's own where left out), for the record.
+    priors_value = getattr(args, 'priors', 'auto')
+    leave_out_own = bool(getattr(args, 'priors_leave_out_own', False))
+    priors = load_priors(priors_value, args.archive, archive, args.damage, leave_out_own)
     oracle_gr = None
     oracle_seconds = 0.0
     oracle_falls = 0
@@ -453,22 +499,11 @@ def run(args, progress=None) -> dict:
         oracle_seconds = time.perf_counter() - start
         oracle_gr = np.where(fallen[:, None], FALLEN_GR, gr)
         oracle_falls = int(fallen.sum())
-    # Callers that build args by hand (the campaign) may leave out the map options.
-    map_path, course = getattr(args, 'map', None) or (None, None)
-    inflation = getattr(args, 'inflation', DEFAULT_INFLATION)
-    goal = args.goal or (list(course.goals[-1]) if course else [2.0, 2.0])
-    # On a course without --goal: the course's mission, its goals in order.
-    via = [list(g) for g in course.goals[:-1]] if course and not args.goal else []
-    # The parameters every run uses (the archive's own where left out), for the record.
-    priors_value = getattr(args, 'priors', 'auto')
-    leave_out_own = bool(getattr(args, 'priors_leave_out_own', False))
-    priors = load_priors(priors_value, args.archive, archive, args.damage, leave_out_own)
     used = sela_config(archive, args.lookahead, kernel_sigma=args.kernel_sigma,
                        alpha=args.alpha, fall_risk=args.fall_risk,
                        fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
                        fall_cost=getattr(args, 'fall_cost', None),
                        horizon=getattr(args, 'horizon', None)).to_dict()
-    check_goals([*via, goal], map_path, inflation)
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     # Each method's seeds are its slot in the full list of methods: run on their own later
     # (the campaign adding a method to a cell), they are those of a run of all of them.

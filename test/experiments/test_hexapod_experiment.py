@@ -234,3 +234,62 @@ def test_the_shortest_kernel_length_taken_runs(archive_path, tmp_path):
     assert doc['parameters']['gp.kernel.sigma'] == 0.001
     assert doc['parameters']['fall.kernel.sigma'] == 0.001
     assert 1 <= doc['methods']['sela']['steps'][0] <= 2
+
+
+def _map(path, obstacles, origin=(-1, -1), size=(4, 4)):
+    """A map in the project's format: ``size`` metres from ``origin``, rectangles occupied."""
+    path.write_text(f'resolution: 0.1\norigin: [{origin[0]}, {origin[1]}]\nwidth: {size[0]}\n'
+                    f'height: {size[1]}\nobstacles: {list(obstacles)}\n')
+    return str(path)
+
+
+def _no_simulation(monkeypatch):
+    """Running anything (a replicate, the oracle's table) fails the test: the error must
+    come before."""
+    from sela_ros.experiments import hexapod
+
+    def boom(*args, **kwargs):
+        raise AssertionError('ran before refusing the arguments')
+
+    monkeypatch.setattr(experiment_env, 'compute_oracle_table', boom)
+    monkeypatch.setattr(hexapod, 'run_method', boom)
+
+
+@pytest.mark.parametrize('extra, said', [
+    # the maze's corridors are narrower than 2 m: no free cell at all
+    (['--map', 'maze', '--inflation', '1'],
+     'goal (3, 0) cannot be reached from the start (0, 0) on the map'),
+    (['--map', 'maze', '--inflation', '10'], 'with --inflation 10 m: no free cell'),
+    # a goal walled in: a ring around (2, 2)
+    (['--goal', '2,2', '--map', 'WALLED', '--inflation', '0.2'],
+     'goal (2, 2) cannot be reached from the start (0, 0) on the map'),
+    (['--goal', '2,2', '--map', 'WALLED', '--inflation', '0.2'], 'with --inflation 0.2 m'),
+    (['--goal', '3.5,2', '--map', 'WALLED'], 'goal (3.5, 2) is off the map'),
+    (['--map', 'START_IN_OBSTACLE', '--goal', '2,2'],
+     'the start (0, 0), where every run begins, is inside an obstacle'),
+    (['--map', 'START_OFF', '--goal', '2,2'],
+     'the start (0, 0), where every run begins, is off the map'),
+])
+def test_a_mission_the_planner_cannot_plan_is_a_usage_error_before_anything_runs(
+        extra, said, archive_path, tmp_path, monkeypatch, capsys):
+    _no_simulation(monkeypatch)
+    maps = {'WALLED': _map(tmp_path / 'walled.yaml', [1.5, 1.5, 2.5, 1.6, 1.5, 2.4, 2.5, 2.5,
+                                      1.5, 1.5, 1.6, 2.5, 2.4, 1.5, 2.5, 2.5]),
+            'START_IN_OBSTACLE': _map(tmp_path / 'start_in.yaml', [-0.5, -0.5, 0.5, 0.5]),
+            'START_OFF': _map(tmp_path / 'start_off.yaml', [], origin=(0.5, 0.5))}
+    extra = [maps.get(e, e) for e in extra]
+    error = _usage_error(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'),
+                          '--archive', str(archive_path), '--methods', 'sela', '--quiet',
+                          *extra], capsys)
+    assert said in error
+
+
+def test_goal_off_a_given_map_asks_for_another_map_or_goal(archive_path, tmp_path, capsys):
+    error = _usage_error(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'),
+                          '--archive', str(archive_path), '--map', 'maze', '--goal', '9,9'],
+                         capsys)
+    assert 'goal (9, 9) is off the map' in error and 'give another --map' in error
+    error = _usage_error(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'),
+                          '--archive', str(archive_path), '--goal', '9,9'], capsys)
+    assert 'give a map that holds it: --map' in error
+
