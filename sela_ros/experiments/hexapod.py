@@ -37,6 +37,7 @@ import argparse
 import dataclasses
 import os
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -120,6 +121,42 @@ def finish_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
         check_goals([*via, goal], map_path, inflation)
     except PlanningError as err:
         parser.error(str(err))
+    check_oracle_cache(parser, args)
+
+
+ORACLE_METHODS = ('oracle', 'oracle_2step')  # the methods that need the oracle's table
+
+
+def cache_problem(directory):
+    """Why the oracle's tables cannot be cached in ``directory`` (made if missing), or None."""
+    directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        return 'is not a directory'
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        return f'cannot be made: {err.strerror or err}'
+    try:
+        with tempfile.TemporaryFile(dir=directory):
+            pass
+    except OSError as err:
+        return f'cannot be written: {err.strerror or err}'
+    return None
+
+
+def check_oracle_cache(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """The oracle's cache directory, given or the default, checked (made if missing) before
+    its table is computed: the table takes minutes, its cache must be able to keep it."""
+    from sim_bridge.experiment_env import default_cache_dir
+
+    if not args.oracle_cache and not set(ORACLE_METHODS) & set(args.methods):
+        return
+    where = args.oracle_cache or default_cache_dir()
+    problem = cache_problem(where)
+    if problem:
+        named = ('--oracle-cache' if args.oracle_cache
+                 else "the oracle's cache ($SELA_CACHE_DIR or ~/.cache/sela_ros/oracle)")
+        parser.error(f'{named} {str(where)!r} {problem}')
 
 
 def _course_map(text):
@@ -487,7 +524,7 @@ def run(args, progress=None) -> dict:
     oracle_gr = None
     oracle_seconds = 0.0
     oracle_falls = 0
-    if {'oracle', 'oracle_2step'} & set(args.methods):
+    if set(ORACLE_METHODS) & set(args.methods):
         start = time.perf_counter()
         with _OracleProgress(len(archive.params), args.damage, args.workers,
                              getattr(args, 'quiet', False)) as shown:

@@ -293,3 +293,27 @@ def test_goal_off_a_given_map_asks_for_another_map_or_goal(archive_path, tmp_pat
                           '--archive', str(archive_path), '--goal', '9,9'], capsys)
     assert 'give a map that holds it: --map' in error
 
+
+@pytest.mark.parametrize('cache, said', [
+    ('FILE', 'is not a directory'),
+    ('FILE/tables', 'cannot be made: Not a directory'),
+])
+def test_an_oracle_cache_that_cannot_hold_the_table_is_refused_before_it_is_computed(
+        cache, said, archive_path, tmp_path, monkeypatch, capsys):
+    _no_simulation(monkeypatch)
+    (tmp_path / 'FILE').write_text('x')
+    cache = str(tmp_path / cache)
+    argv = ['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'), '--archive',
+            str(archive_path), '--methods', 'oracle', '--quiet']
+    error = _usage_error([*argv, '--oracle-cache', cache], capsys)
+    assert f"--oracle-cache '{cache}' {said}" in error
+    monkeypatch.setenv('SELA_CACHE_DIR', cache)  # the default cache, when none is given
+    assert said in _usage_error(argv, capsys)
+
+
+def test_a_missing_oracle_cache_is_made(archive_path, tmp_path):
+    cache = tmp_path / 'new' / 'cache'
+    assert main(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'), '--archive',
+                 str(archive_path), '--methods', 'sela', '--max-steps', '1', '--quiet',
+                 '--oracle-cache', str(cache)]) == 0
+    assert cache.is_dir()
