@@ -322,15 +322,17 @@ ARGUMENT_ERRORS = (PlanningError,)
 START = (0.0, 0.0)
 
 
-def check_goals(goals, map_path, inflation, start=START):
+def check_goals(goals, map_path, inflation, start=START, hint=None):
     """Refuse a mission the planner could not plan, before anything runs: a start or a goal
     off the map or inside an obstacle (as the nodes refuse a goal), or a goal with no path
     to it from the start (through the goals before it) ``inflation`` metres clear of
-    obstacles. Raises :class:`PlanningError` saying which."""
+    obstacles. Raises :class:`PlanningError` saying which; ``hint`` says what to do about
+    a goal the planner refuses (default: about ``--map``)."""
     grid, planner = worker_planner(map_path, inflation)
     on = f'the map {map_path}' if map_path else "the planner's default map"
-    hint = ('give another --map, or goals on it' if map_path
-            else 'give a map that holds it: --map')
+    if hint is None:
+        hint = ('give another --map, or goals on it' if map_path
+                else 'give a map that holds it: --map')
     problem = grid.goal_problem(start)
     if problem:
         raise PlanningError(f'the start ({start[0]:g}, {start[1]:g}), where every run begins, '
