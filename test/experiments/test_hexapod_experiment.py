@@ -317,3 +317,14 @@ def test_a_missing_oracle_cache_is_made(archive_path, tmp_path):
                  str(archive_path), '--methods', 'sela', '--max-steps', '1', '--quiet',
                  '--oracle-cache', str(cache)]) == 0
     assert cache.is_dir()
+
+
+def test_an_error_found_while_running_is_said_with_the_scenarios_usage(archive_path, tmp_path,
+                                                                      capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'), '--archive',
+              str(archive_path), '--methods', 'sela', '--quiet', '--priors',
+              str(tmp_path / 'no_such_priors.npz')])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and 'no_such_priors.npz' in err
+    assert err.startswith('usage: sela-experiment hexapod ')

@@ -49,12 +49,14 @@ def test_bad_arguments_exit_2_without_traceback(args, tmp_path):
     assert 'usage:' in proc.stderr and 'Traceback' not in proc.stderr
 
 
-def test_out_is_a_file(tmp_path):
+def test_out_is_a_file(tmp_path, capsys):
     f = tmp_path / 'file'
     f.write_text('x')
     with pytest.raises(SystemExit) as exc:
         main(['toy', '--replicates', '1', '--out', str(f)])
     assert exc.value.code == 2
+    err = capsys.readouterr().err  # said with the scenario's usage
+    assert err.startswith('usage: sela-experiment toy ') and 'sela-experiment toy: error' in err
 
 
 def test_an_unexpected_error_of_a_scenario_comes_through_as_itself(tmp_path, monkeypatch):
