@@ -95,11 +95,15 @@ def node_seed(text):
 
 
 def method_list(text):
-    names = [n.strip() for n in text.split(',') if n.strip()]
-    unknown = [n for n in names if n not in METHODS]
-    if not names or unknown:
+    """Comma-separated method names, each once (a repeat is dropped: it would run twice)."""
+    names = list(dict.fromkeys(n.strip() for n in text.split(',') if n.strip()))
+    if not names:
         raise argparse.ArgumentTypeError(
-            f'unknown method(s) {unknown}; choose from {", ".join(METHODS)}')
+            f'expected at least one method, got {text!r}; choose from {", ".join(METHODS)}')
+    unknown = [n for n in names if n not in METHODS]
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f'unknown method(s) {", ".join(unknown)}; choose from {", ".join(METHODS)}')
     return names
 
 

@@ -85,3 +85,18 @@ def test_noise_beyond_the_nodes_range_is_a_usage_error_and_noise_within_it_a_run
     assert main([*base, '--out', str(tmp_path / 'noisy'), '--noise-std', '1']) == 0
     doc = json.loads((tmp_path / 'noisy' / 'results.json').read_text())
     assert doc['parameters']['noise_std'] == 1.0 and len(doc['methods']['sela']['steps']) == 2
+
+
+def test_methods_are_each_run_once_and_none_is_said_as_such(tmp_path, capsys):
+    from sela_ros.experiments.arguments import method_list
+
+    assert method_list('sela,oracle,sela') == ['sela', 'oracle']
+    for text in ('', ' , '):
+        with pytest.raises(SystemExit) as exc:
+            main(['toy', '--replicates', '1', '--out', str(tmp_path), '--methods', text])
+        assert exc.value.code == 2
+        assert 'expected at least one method' in capsys.readouterr().err
+    assert main(['toy', '--replicates', '2', '--max-steps', '3', '--quiet', '--out',
+                 str(tmp_path / 'twice'), '--methods', 'sela,sela']) == 0
+    doc = json.loads((tmp_path / 'twice' / 'results.json').read_text())
+    assert list(doc['methods']) == ['sela'] and len(doc['methods']['sela']['steps']) == 2
