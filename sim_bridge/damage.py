@@ -221,9 +221,10 @@ def _payload(rest: str, item: str) -> tuple[float, float, float]:
     return kg, x + 0.0, y + 0.0
 
 
-def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD) -> DamageSpec:
+def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD, robot: str = '') -> DamageSpec:
     """Parse a damage specification (a string, ``None`` or a :class:`DamageSpec`) over the
-    names of ``vocabulary`` (the hexapod's by default).
+    names of ``vocabulary`` (the hexapod's by default); ``robot``, its name, words the error
+    of a kind of the grammar that this robot does not take.
 
     Raises:
         DamageSpecError: unknown kind, leg or joint, a bad number, or a contradiction
@@ -296,9 +297,12 @@ def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD) -> DamageSpec:
                 raise DamageSpecError('payload given twice differently (one payload at most)')
             payload = value
         else:
-            raise DamageSpecError(
-                f'unknown damage kind {kind.strip()!r} in {item!r}; valid kinds: '
-                f'{", ".join(vocabulary.kinds)} ({_examples(vocabulary)})')
+            kind = kind.strip()
+            problem = (f'the {robot or "robot"} does not take damage kind {kind!r} (in '
+                       f'{item!r})' if kind in KINDS
+                       else f'unknown damage kind {kind!r} in {item!r}')
+            raise DamageSpecError(f'{problem}; valid kinds: {", ".join(vocabulary.kinds)} '
+                                  f'({_examples(vocabulary)})')
     if removed and len(removed) == len(vocabulary.legs):
         raise DamageSpecError(f'every leg is removed ({", ".join(vocabulary.legs)}): at least '
                               'one must remain for the robot to stand on')

@@ -11,8 +11,11 @@ from sela_ros.experiments.baselines import METHODS
 #: goal tolerance), and its claims ("almost optimal" steps) hold with a std of 0.01 m
 #: instead (docs/toy_results.md). `--noise-std 0.1` runs the literal reading.
 DEFAULT_NOISE_STD = 0.01
-NOISE_HELP = ("std (m) of the noise on observed positions (default %(default)s; the paper's "
-              "'sigma^2 = 0.01' read literally is 0.1, see docs/toy_results.md)")
+#: The largest std (m) of that noise: the sim_bridge node's ``observation.noise_std`` range.
+#: Beyond it a position says nothing of a gait (the fastest moves 0.7 m) and overflows.
+MAX_NOISE_STD = 1.0
+NOISE_HELP = ("std (m) of the noise on observed positions, 0 to 1 (default %(default)s; the "
+              "paper's 'sigma^2 = 0.01' read literally is 0.1, see docs/toy_results.md)")
 
 
 def non_negative_float(text):
@@ -29,6 +32,32 @@ def positive_float(text):
     value = non_negative_float(text)
     if value == 0:
         raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
+    return value
+
+
+def noise_std(text):
+    """``--noise-std``: a std (m) in [0, :data:`MAX_NOISE_STD`]."""
+    value = non_negative_float(text)
+    if value > MAX_NOISE_STD:
+        raise argparse.ArgumentTypeError(
+            f'expected a std of at most {MAX_NOISE_STD:g} m (the sim_bridge node\'s '
+            f'observation.noise_std range), got {text!r}')
+    return value
+
+
+#: The range of ``--kernel-sigma`` and ``--fall-kernel-sigma`` (on descriptors normalised to
+#: [0, 1]): below it the kernel's squared length underflows (a division by zero, NaN
+#: predictions) long before it stops meaning "each gait on its own"; above it the node's.
+MIN_KERNEL_SIGMA, MAX_KERNEL_SIGMA = 1e-3, 100.0
+
+
+def kernel_sigma(text):
+    """A GP kernel length in [:data:`MIN_KERNEL_SIGMA`, :data:`MAX_KERNEL_SIGMA`]."""
+    value = non_negative_float(text)
+    if not MIN_KERNEL_SIGMA <= value <= MAX_KERNEL_SIGMA:
+        raise argparse.ArgumentTypeError(
+            f'expected a kernel length in [{MIN_KERNEL_SIGMA:g}, {MAX_KERNEL_SIGMA:g}] '
+            f'(on normalised descriptors), got {text!r}')
     return value
 
 
@@ -66,11 +95,15 @@ def node_seed(text):
 
 
 def method_list(text):
-    names = [n.strip() for n in text.split(',') if n.strip()]
-    unknown = [n for n in names if n not in METHODS]
-    if not names or unknown:
+    """Comma-separated method names, each once (a repeat is dropped: it would run twice)."""
+    names = list(dict.fromkeys(n.strip() for n in text.split(',') if n.strip()))
+    if not names:
         raise argparse.ArgumentTypeError(
-            f'unknown method(s) {unknown}; choose from {", ".join(METHODS)}')
+            f'expected at least one method, got {text!r}; choose from {", ".join(METHODS)}')
+    unknown = [n for n in names if n not in METHODS]
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f'unknown method(s) {", ".join(unknown)}; choose from {", ".join(METHODS)}')
     return names
 
 

@@ -28,6 +28,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from sela_ros.core.learning import SELAConfig
+from sela_ros.core.planning import DEFAULT_INFLATION, PlanningError
 from sela_ros.core.storage import atomic_write_bytes
 from sela_ros.experiments import arguments, hexapod, workers
 
@@ -43,16 +44,46 @@ DEFAULT_GOALS = ('2,2', '-2,1.5', '1.5,-2')
 def damage_list(text):
     """Damages separated by ``;``: groups (``single-legs``, ``two-legs``) or specs of the
     damage grammar, where a comma joins damages into one (``remove:front_left,remove:rear_right``
-    is ONE two-leg damage)."""
+    is ONE two-leg damage). Each is parsed in the names of each archive's robot by
+    :func:`finish_arguments`."""
     out = []
     for item in [t.strip() for t in text.split(';') if t.strip()]:
-        if item in GROUPS:
-            out.extend(GROUPS[item])
-        else:
-            out.append(arguments.damage(item))
+        out.extend(GROUPS.get(item, [item]))
     if not out:
         raise argparse.ArgumentTypeError(f'no damage in {text!r}')
     return out
+
+
+def finish_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """After parsing, before any cell runs: every damage in the names of every archive's
+    robot (``args.damages`` becomes their canonical forms), every goal on the planner's
+    map, and the oracle's cache."""
+    from sim_bridge.damage import DamageSpecError
+    from sim_bridge.robots import get_robot, robot_of
+
+    canonical = None
+    for archive in args.archive or [args.default_archive]:
+        robot = robot_of(_load_archive(os.path.abspath(archive)).metadata)
+        try:
+            description = get_robot(robot)
+        except ValueError as err:
+            parser.error(f'--archive {archive}: {err}')
+        damages = []
+        for damage in args.damages:
+            try:
+                damages.append(description.parse_damage(damage).canonical())
+            except DamageSpecError as err:
+                parser.error(f'--damages: {damage!r} on {Path(archive).name}, a map of the '
+                             f'{description.name}: {err}')
+        canonical = canonical or damages
+    args.damages = canonical
+    for goal in args.goals:  # each cell walks from the start to one goal
+        try:
+            hexapod.check_goals([goal], None, DEFAULT_INFLATION,
+                                hint='every cell runs on that map: give goals on it')
+        except PlanningError as err:
+            parser.error(f'--goals: {err}')
+    hexapod.check_oracle_cache(parser, args)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -61,26 +92,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--archive', action='append', type=hexapod.archive_argument, default=None,
                         help='a map to compare (repeat for several; default: the shipped one)')
     parser.add_argument('--damages', type=damage_list, default=damage_list(DEFAULT_DAMAGES),
-                        help="';'-separated damage specs or groups: "
-                             f"{', '.join(GROUPS)} (default {DEFAULT_DAMAGES})")
+                        help="';'-separated damage specs in the names of each archive's robot, "
+                             f"or the hexapod's groups: {', '.join(GROUPS)} (default "
+                             f'{DEFAULT_DAMAGES})')
     parser.add_argument('--goals', type=arguments.goal, nargs='+',
                         default=[arguments.goal(g) for g in DEFAULT_GOALS],
                         help=f'goals X,Y (default: {" ".join(DEFAULT_GOALS)})')
     parser.add_argument('--methods', type=arguments.method_list,
                         default=list(hexapod.HEXAPOD_METHODS),
                         help='comma-separated methods (default: %(default)s)')
-    parser.add_argument('--noise-std', type=arguments.non_negative_float,
+    parser.add_argument('--noise-std', type=arguments.noise_std,
                         default=arguments.DEFAULT_NOISE_STD, help=arguments.NOISE_HELP)
     parser.add_argument('--lookahead', type=arguments.positive_float,
                         default=hexapod.DEFAULT_LOOKAHEAD, help='waypoint distance (m)')
     parser.add_argument('--fall-risk', type=arguments.positive_float, default=None,
                         help='fall.risk.threshold of SELA (default: its default)')
-    parser.add_argument('--kernel-sigma', type=arguments.positive_float, default=None,
+    parser.add_argument('--kernel-sigma', type=arguments.kernel_sigma, default=None,
                         help="gp.kernel.sigma on normalised descriptors (default: each "
                              "archive's: 0.1 for the 2-D map, 0.3 for the 8-D map)")
     parser.add_argument('--fall-cost', type=arguments.non_negative_float, default=None,
                         help="fall.risk.cost of SELA (default: its default)")
-    parser.add_argument('--fall-kernel-sigma', type=arguments.positive_float, default=None,
+    parser.add_argument('--fall-kernel-sigma', type=arguments.kernel_sigma, default=None,
                         help="fall.kernel.sigma: kernel length of the fall GP (default: the "
                              "archive's: 0.1 on a 2-D map, 0.12 on the 8-D map)")
     parser.add_argument('--alpha', type=arguments.non_negative_float,

@@ -68,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog='sela-experiment',
         description='Reproduce the SELA paper experiments with replicates.')
     sub = parser.add_subparsers(dest='scenario', metavar='SCENARIO', required=True)
-    parser.scenario_parsers = {}  # for the errors of finish_arguments
+    parser.scenario_parsers = {}  # for the errors found after parsing
     for name, scenario in SCENARIOS.items():
         p = sub.add_parser(name, parents=[common], help=scenario.help,
                            description=scenario.help)
@@ -82,14 +82,16 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     module = importlib.import_module(SCENARIOS[args.scenario].module)
+    # Errors from here on are the scenario's: said with its usage, not the top level's.
+    scenario_parser = parser.scenario_parsers[args.scenario]
     if hasattr(module, 'finish_arguments'):  # checks that need several options together
-        module.finish_arguments(parser.scenario_parsers[args.scenario], args)
+        module.finish_arguments(scenario_parser, args)
     if os.path.exists(args.out) and not os.path.isdir(args.out):
-        parser.error(f'--out {args.out!r} exists and is not a directory')
+        scenario_parser.error(f'--out {args.out!r} exists and is not a directory')
     try:
         os.makedirs(args.out, exist_ok=True)
     except OSError as err:
-        parser.error(f'cannot create --out directory {args.out!r}: {err.strerror}')
+        scenario_parser.error(f'cannot create --out directory {args.out!r}: {err.strerror}')
 
     from tqdm import tqdm
 
@@ -100,7 +102,7 @@ def main(argv=None) -> int:
             doc = module.run(args, progress=lambda: bar.update(1))
         except (DamagePriorError, *getattr(module, 'ARGUMENT_ERRORS', ())) as err:
             bar.close()
-            parser.error(str(err))
+            scenario_parser.error(str(err))
     results_path = os.path.join(args.out, 'results.json')
     atomic_write_bytes(results_path, json.dumps(doc, indent=1).encode())
 

@@ -6,10 +6,10 @@ Every replicate runs every method on its own simulated hexapod (PyBullet, in the
 process), damaged from the start, standing at the origin. Within a replicate the robot is
 never reset: learning trials (IT&E) move it too, and a fallen robot gets up where it lies
 (the gait counts). Position observations carry Gaussian noise (``--noise-std``, default
-0.1 m: the paper's sigma^2 = 0.01). SELA runs the ``sela_adapter`` node's decision loop
-(:func:`~sela_ros.core.mission.run_mission`: its stepper, damage detector and defaults)
-and, as the node, judges the goal on the observed pose; the baselines judge it on the true
-pose (eps 0.1 m).
+0.01 m; the paper's sigma^2 = 0.01 read literally is 0.1 m). SELA runs the
+``sela_adapter`` node's decision loop (:func:`~sela_ros.core.mission.run_mission`: its
+stepper, damage detector and defaults) and, as the node, judges the goal on the observed
+pose; the baselines judge it on the true pose (eps 0.1 m).
 
 Choices the paper leaves open (see ``docs/hexapod_results.md`` for the measurements):
 
@@ -37,6 +37,7 @@ import argparse
 import dataclasses
 import os
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -115,6 +116,47 @@ def finish_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
             description.default_damage if args.damage is None else args.damage).canonical()
     except DamageSpecError as err:
         parser.error(f'--damage: {err}')
+    try:
+        map_path, _, inflation, goal, via = mission(args)
+        check_goals([*via, goal], map_path, inflation)
+    except PlanningError as err:
+        parser.error(str(err))
+    check_oracle_cache(parser, args)
+
+
+ORACLE_METHODS = ('oracle', 'oracle_2step')  # the methods that need the oracle's table
+
+
+def cache_problem(directory):
+    """Why the oracle's tables cannot be cached in ``directory`` (made if missing), or None."""
+    directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        return 'is not a directory'
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        return f'cannot be made: {err.strerror or err}'
+    try:
+        with tempfile.TemporaryFile(dir=directory):
+            pass
+    except OSError as err:
+        return f'cannot be written: {err.strerror or err}'
+    return None
+
+
+def check_oracle_cache(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """The oracle's cache directory, given or the default, checked (made if missing) before
+    its table is computed: the table takes minutes, its cache must be able to keep it."""
+    from sim_bridge.experiment_env import default_cache_dir
+
+    if not args.oracle_cache and not set(ORACLE_METHODS) & set(args.methods):
+        return
+    where = args.oracle_cache or default_cache_dir()
+    problem = cache_problem(where)
+    if problem:
+        named = ('--oracle-cache' if args.oracle_cache
+                 else "the oracle's cache ($SELA_CACHE_DIR or ~/.cache/sela_ros/oracle)")
+        parser.error(f'{named} {str(where)!r} {problem}')
 
 
 def _course_map(text):
@@ -156,19 +198,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         default=DEFAULT_INFLATION,
                         help='with --map: clearance kept from obstacles (m, default '
                              '%(default)s, as the planner node)')
-    parser.add_argument('--noise-std', type=arguments.non_negative_float,
+    parser.add_argument('--noise-std', type=arguments.noise_std,
                         default=arguments.DEFAULT_NOISE_STD, help=arguments.NOISE_HELP)
     parser.add_argument('--lookahead', type=arguments.positive_float, default=DEFAULT_LOOKAHEAD,
                         help='reward selection layer: waypoint distance along the straight '
                              'path to the goal (m, default %(default)s)')
-    parser.add_argument('--kernel-sigma', type=arguments.positive_float, default=None,
+    parser.add_argument('--kernel-sigma', type=arguments.kernel_sigma, default=None,
                         help="gp.kernel.sigma on normalised descriptors (default: the "
                              "archive's: 0.1, the paper's, for the 2-D map; 0.3 for the 8-D "
                              "map)")
     parser.add_argument('--fall-cost', type=arguments.non_negative_float, default=None,
                         help="fall.risk.cost: metres of progress a fall is worth in SELA's "
                              'choice (default: SELA\'s default)')
-    parser.add_argument('--fall-kernel-sigma', type=arguments.positive_float, default=None,
+    parser.add_argument('--fall-kernel-sigma', type=arguments.kernel_sigma, default=None,
                         help="fall.kernel.sigma: kernel length of the fall GP (default: the "
                              "archive's: 0.1 on a 2-D map, 0.12 on the 8-D map)")
     parser.add_argument('--alpha', type=arguments.non_negative_float,
@@ -276,14 +318,39 @@ def make_problem(archive, goal, lookahead, max_steps, true_gr=None,
 ARGUMENT_ERRORS = (PlanningError,)
 
 
-def check_goals(goals, map_path, inflation):
-    """Refuse goals the planner could not plan to, as the nodes refuse them."""
-    grid, _ = worker_planner(map_path, inflation)
+#: Where every run starts (x, y): the origin of the map.
+START = (0.0, 0.0)
+
+
+def check_goals(goals, map_path, inflation, start=START, hint=None):
+    """Refuse a mission the planner could not plan, before anything runs: a start or a goal
+    off the map or inside an obstacle (as the nodes refuse a goal), or a goal with no path
+    to it from the start (through the goals before it) ``inflation`` metres clear of
+    obstacles. Raises :class:`PlanningError` saying which; ``hint`` says what to do about
+    a goal the planner refuses (default: about ``--map``)."""
+    grid, planner = worker_planner(map_path, inflation)
+    on = f'the map {map_path}' if map_path else "the planner's default map"
+    if hint is None:
+        hint = ('give another --map, or goals on it' if map_path
+                else 'give a map that holds it: --map')
+    problem = grid.goal_problem(start)
+    if problem:
+        raise PlanningError(f'the start ({start[0]:g}, {start[1]:g}), where every run begins, '
+                            f'is {problem} on {on}: give a map on which it is free')
     for goal in goals:
         problem = grid.goal_problem(goal)
         if problem:
             raise PlanningError(f'goal ({goal[0]:g}, {goal[1]:g}) is {problem}: the planner '
-                                'refuses it (give a map that holds it: --map)')
+                                f'refuses it ({hint})')
+    previous, origin = start, 'the start'
+    for goal in goals:
+        try:
+            planner(previous, goal)
+        except PlanningError as err:
+            raise PlanningError(f'goal ({goal[0]:g}, {goal[1]:g}) cannot be reached from '
+                                f'{origin} ({previous[0]:g}, {previous[1]:g}) on {on} with '
+                                f'--inflation {inflation:g} m: {err}') from None
+        previous, origin = goal, 'the goal before it'
 
 
 @dataclass(frozen=True)
@@ -428,6 +495,18 @@ def step_detail(record) -> dict:
     return out
 
 
+def mission(args):
+    """``(map path, Course, inflation, goal, via)`` of a run: on a course without ``--goal``
+    the course's mission, its goals in order (``via`` those before the last); else the goal
+    alone (default 2, 2)."""
+    # Callers that build args by hand (the campaign) may leave out the map options.
+    map_path, course = getattr(args, 'map', None) or (None, None)
+    inflation = getattr(args, 'inflation', DEFAULT_INFLATION)
+    goal = args.goal or (list(course.goals[-1]) if course else [2.0, 2.0])
+    via = [list(g) for g in course.goals[:-1]] if course and not args.goal else []
+    return map_path, course, inflation, goal, via
+
+
 def run(args, progress=None) -> dict:
     """Run the experiment described by ``args``; returns the results.json document."""
     from sela_ros.core.storage import load_archive
@@ -438,10 +517,16 @@ def run(args, progress=None) -> dict:
     archive = load_archive(args.archive)
     robot = getattr(args, 'robot', None) or robot_of(archive.metadata)
     settings = archive.simulator_settings
+    map_path, course, inflation, goal, via = mission(args)
+    check_goals([*via, goal], map_path, inflation)
+    # The parameters every run uses (the archive's own where left out), for the record.
+    priors_value = getattr(args, 'priors', 'auto')
+    leave_out_own = bool(getattr(args, 'priors_leave_out_own', False))
+    priors = load_priors(priors_value, args.archive, archive, args.damage, leave_out_own)
     oracle_gr = None
     oracle_seconds = 0.0
     oracle_falls = 0
-    if {'oracle', 'oracle_2step'} & set(args.methods):
+    if set(ORACLE_METHODS) & set(args.methods):
         start = time.perf_counter()
         with _OracleProgress(len(archive.params), args.damage, args.workers,
                              getattr(args, 'quiet', False)) as shown:
@@ -453,22 +538,11 @@ def run(args, progress=None) -> dict:
         oracle_seconds = time.perf_counter() - start
         oracle_gr = np.where(fallen[:, None], FALLEN_GR, gr)
         oracle_falls = int(fallen.sum())
-    # Callers that build args by hand (the campaign) may leave out the map options.
-    map_path, course = getattr(args, 'map', None) or (None, None)
-    inflation = getattr(args, 'inflation', DEFAULT_INFLATION)
-    goal = args.goal or (list(course.goals[-1]) if course else [2.0, 2.0])
-    # On a course without --goal: the course's mission, its goals in order.
-    via = [list(g) for g in course.goals[:-1]] if course and not args.goal else []
-    # The parameters every run uses (the archive's own where left out), for the record.
-    priors_value = getattr(args, 'priors', 'auto')
-    leave_out_own = bool(getattr(args, 'priors_leave_out_own', False))
-    priors = load_priors(priors_value, args.archive, archive, args.damage, leave_out_own)
     used = sela_config(archive, args.lookahead, kernel_sigma=args.kernel_sigma,
                        alpha=args.alpha, fall_risk=args.fall_risk,
                        fall_kernel_sigma=getattr(args, 'fall_kernel_sigma', None),
                        fall_cost=getattr(args, 'fall_cost', None),
                        horizon=getattr(args, 'horizon', None)).to_dict()
-    check_goals([*via, goal], map_path, inflation)
     seeds = np.random.SeedSequence(args.seed).spawn(args.replicates)
     # Each method's seeds are its slot in the full list of methods: run on their own later
     # (the campaign adding a method to a cell), they are those of a run of all of them.

@@ -15,7 +15,7 @@ NUM_BEHAVIOURS = 1000
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sela-experiment toy`` (the common ones are added by the CLI)."""
-    parser.add_argument('--noise-std', type=arguments.non_negative_float,
+    parser.add_argument('--noise-std', type=arguments.noise_std,
                         default=arguments.DEFAULT_NOISE_STD, help=arguments.NOISE_HELP)
     parser.add_argument('--methods', type=arguments.method_list, default=list(DEFAULT_METHODS),
                         help='comma-separated methods (default: %(default)s; also '

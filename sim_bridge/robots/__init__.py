@@ -94,7 +94,7 @@ class RobotDescription:
 
     def parse_damage(self, spec) -> DamageSpec:
         """``spec`` parsed over this robot's names (:func:`sim_bridge.damage.parse_damage`)."""
-        return parse_damage(spec, self.vocabulary)
+        return parse_damage(spec, self.vocabulary, self.name)
 
     def joint_key(self, joint_name: str) -> tuple[str, str]:
         """``(leg, joint)`` of a URDF joint name, as damages name it (default ``leg.joint``)."""

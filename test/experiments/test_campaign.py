@@ -94,3 +94,51 @@ def test_a_method_added_later_joins_the_cells_with_the_seeds_of_a_run_of_all(tmp
     assert 'archive_checksum' in campaign(tmp_path / 'b', 'oracle,sela', status=2)
     assert added['parameters']['oracle_gaits_that_fall'] == \
         together['parameters']['oracle_gaits_that_fall']
+
+
+def _refused(argv, capsys, monkeypatch):
+    """The usage error of ``sela-experiment campaign argv``, given before any cell runs."""
+    import pytest
+
+    from sela_ros.experiments import hexapod
+    from sela_ros.experiments.cli import main
+
+    def boom(*args, **kwargs):
+        raise AssertionError('a cell ran before the arguments were refused')
+
+    monkeypatch.setattr(hexapod, 'run', boom)
+    with pytest.raises(SystemExit) as exc:
+        main(['campaign', '--replicates', '1', '--methods', 'sela', '--quiet', *argv])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and 'Traceback' not in err
+    return err.strip().splitlines()[-1]
+
+
+def test_damages_are_parsed_in_the_names_of_the_archives_robot(tmp_path, capsys, monkeypatch):
+    from sela_ros.experiments import campaign
+    from sela_ros.experiments.cli import build_parser
+    from sim_bridge.robots import get_robot
+
+    parser = build_parser().scenario_parsers['campaign']
+    args = parser.parse_args(['--replicates', '1', '--out', str(tmp_path), '--archive', 'a1',
+                              '--damages', 'block:rear_right.calf', '--goals', '1,1'])
+    campaign.finish_arguments(parser, args)  # the a1's own damage is taken
+    assert args.damages == [get_robot('a1').parse_damage('block:rear_right.calf').canonical()]
+    error = _refused(['--out', str(tmp_path), '--archive', 'a1', '--damages',
+                      'remove:front_left', '--goals', '1,1'], capsys, monkeypatch)
+    assert "--damages: 'remove:front_left' on a1_archive.npz, a map of the a1" in error
+    error = _refused(['--out', str(tmp_path), '--damages', 'block:rear_right.calf'], capsys,
+                     monkeypatch)
+    assert 'a map of the hexapod' in error and 'calf' in error
+
+
+def test_every_goal_and_the_oracle_cache_are_checked_before_the_first_cell(tmp_path, capsys,
+                                                                          monkeypatch):
+    error = _refused(['--out', str(tmp_path / 'out'), '--damages', 'remove:front_left',
+                      '--goals', '1,1', '9,9'], capsys, monkeypatch)
+    assert '--goals: goal (9, 9) is off the map' in error and 'give goals on it' in error
+    (tmp_path / 'file').write_text('x')
+    error = _refused(['--out', str(tmp_path / 'out'), '--damages', 'remove:front_left',
+                      '--goals', '1,1', '--methods', 'oracle', '--oracle-cache',
+                      str(tmp_path / 'file')], capsys, monkeypatch)
+    assert 'is not a directory' in error

@@ -200,3 +200,131 @@ def test_a_replicate_told_a_prior_mean_chooses_by_it(archive_path):
     table = np.zeros_like(archive.generic_reward)
     table[only, 0] = 0.6
     assert first(table) == [only]
+
+
+def _usage_error(argv, capsys):
+    """The last line of the usage error ``argv`` gives (exit code 2, no traceback)."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2, err
+    assert 'Traceback' not in err
+    return err.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize('scenario', ['hexapod', 'campaign'])
+@pytest.mark.parametrize('option', ['--kernel-sigma', '--fall-kernel-sigma'])
+@pytest.mark.parametrize('value', ['1e-300', '1e-160', '0.0009', '101'])
+def test_kernel_lengths_out_of_range_are_usage_errors(scenario, option, value, capsys):
+    from sela_ros.experiments.cli import build_parser
+
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args([scenario, '--replicates', '1', '--out', 'x', option, value])
+    assert exc.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f'{option}: expected a kernel length in [0.001, 100]' in error
+
+
+def test_the_shortest_kernel_length_taken_runs(archive_path, tmp_path):
+    out = tmp_path / 'short'
+    assert main(['hexapod', '--replicates', '1', '--out', str(out), '--archive',
+                 str(archive_path), '--methods', 'sela', '--max-steps', '2', '--quiet',
+                 '--kernel-sigma', '0.001', '--fall-kernel-sigma', '0.001']) == 0
+    doc = json.loads((out / 'results.json').read_text())
+    assert doc['parameters']['gp.kernel.sigma'] == 0.001
+    assert doc['parameters']['fall.kernel.sigma'] == 0.001
+    assert 1 <= doc['methods']['sela']['steps'][0] <= 2
+
+
+def _map(path, obstacles, origin=(-1, -1), size=(4, 4)):
+    """A map in the project's format: ``size`` metres from ``origin``, rectangles occupied."""
+    path.write_text(f'resolution: 0.1\norigin: [{origin[0]}, {origin[1]}]\nwidth: {size[0]}\n'
+                    f'height: {size[1]}\nobstacles: {list(obstacles)}\n')
+    return str(path)
+
+
+def _no_simulation(monkeypatch):
+    """Running anything (a replicate, the oracle's table) fails the test: the error must
+    come before."""
+    from sela_ros.experiments import hexapod
+
+    def boom(*args, **kwargs):
+        raise AssertionError('ran before refusing the arguments')
+
+    monkeypatch.setattr(experiment_env, 'compute_oracle_table', boom)
+    monkeypatch.setattr(hexapod, 'run_method', boom)
+
+
+@pytest.mark.parametrize('extra, said', [
+    # the maze's corridors are narrower than 2 m: no free cell at all
+    (['--map', 'maze', '--inflation', '1'],
+     'goal (3, 0) cannot be reached from the start (0, 0) on the map'),
+    (['--map', 'maze', '--inflation', '10'], 'with --inflation 10 m: no free cell'),
+    # a goal walled in: a ring around (2, 2)
+    (['--goal', '2,2', '--map', 'WALLED', '--inflation', '0.2'],
+     'goal (2, 2) cannot be reached from the start (0, 0) on the map'),
+    (['--goal', '2,2', '--map', 'WALLED', '--inflation', '0.2'], 'with --inflation 0.2 m'),
+    (['--goal', '3.5,2', '--map', 'WALLED'], 'goal (3.5, 2) is off the map'),
+    (['--map', 'START_IN_OBSTACLE', '--goal', '2,2'],
+     'the start (0, 0), where every run begins, is inside an obstacle'),
+    (['--map', 'START_OFF', '--goal', '2,2'],
+     'the start (0, 0), where every run begins, is off the map'),
+])
+def test_a_mission_the_planner_cannot_plan_is_a_usage_error_before_anything_runs(
+        extra, said, archive_path, tmp_path, monkeypatch, capsys):
+    _no_simulation(monkeypatch)
+    maps = {'WALLED': _map(tmp_path / 'walled.yaml', [1.5, 1.5, 2.5, 1.6, 1.5, 2.4, 2.5, 2.5,
+                                      1.5, 1.5, 1.6, 2.5, 2.4, 1.5, 2.5, 2.5]),
+            'START_IN_OBSTACLE': _map(tmp_path / 'start_in.yaml', [-0.5, -0.5, 0.5, 0.5]),
+            'START_OFF': _map(tmp_path / 'start_off.yaml', [], origin=(0.5, 0.5))}
+    extra = [maps.get(e, e) for e in extra]
+    error = _usage_error(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'),
+                          '--archive', str(archive_path), '--methods', 'sela', '--quiet',
+                          *extra], capsys)
+    assert said in error
+
+
+def test_goal_off_a_given_map_asks_for_another_map_or_goal(archive_path, tmp_path, capsys):
+    error = _usage_error(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'),
+                          '--archive', str(archive_path), '--map', 'maze', '--goal', '9,9'],
+                         capsys)
+    assert 'goal (9, 9) is off the map' in error and 'give another --map' in error
+    error = _usage_error(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'),
+                          '--archive', str(archive_path), '--goal', '9,9'], capsys)
+    assert 'give a map that holds it: --map' in error
+
+
+@pytest.mark.parametrize('cache, said', [
+    ('FILE', 'is not a directory'),
+    ('FILE/tables', 'cannot be made: Not a directory'),
+])
+def test_an_oracle_cache_that_cannot_hold_the_table_is_refused_before_it_is_computed(
+        cache, said, archive_path, tmp_path, monkeypatch, capsys):
+    _no_simulation(monkeypatch)
+    (tmp_path / 'FILE').write_text('x')
+    cache = str(tmp_path / cache)
+    argv = ['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'), '--archive',
+            str(archive_path), '--methods', 'oracle', '--quiet']
+    error = _usage_error([*argv, '--oracle-cache', cache], capsys)
+    assert f"--oracle-cache '{cache}' {said}" in error
+    monkeypatch.setenv('SELA_CACHE_DIR', cache)  # the default cache, when none is given
+    assert said in _usage_error(argv, capsys)
+
+
+def test_a_missing_oracle_cache_is_made(archive_path, tmp_path):
+    cache = tmp_path / 'new' / 'cache'
+    assert main(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'), '--archive',
+                 str(archive_path), '--methods', 'sela', '--max-steps', '1', '--quiet',
+                 '--oracle-cache', str(cache)]) == 0
+    assert cache.is_dir()
+
+
+def test_an_error_found_while_running_is_said_with_the_scenarios_usage(archive_path, tmp_path,
+                                                                      capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(['hexapod', '--replicates', '1', '--out', str(tmp_path / 'out'), '--archive',
+              str(archive_path), '--methods', 'sela', '--quiet', '--priors',
+              str(tmp_path / 'no_such_priors.npz')])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and 'no_such_priors.npz' in err
+    assert err.startswith('usage: sela-experiment hexapod ')

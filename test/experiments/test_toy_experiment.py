@@ -49,12 +49,14 @@ def test_bad_arguments_exit_2_without_traceback(args, tmp_path):
     assert 'usage:' in proc.stderr and 'Traceback' not in proc.stderr
 
 
-def test_out_is_a_file(tmp_path):
+def test_out_is_a_file(tmp_path, capsys):
     f = tmp_path / 'file'
     f.write_text('x')
     with pytest.raises(SystemExit) as exc:
         main(['toy', '--replicates', '1', '--out', str(f)])
     assert exc.value.code == 2
+    err = capsys.readouterr().err  # said with the scenario's usage
+    assert err.startswith('usage: sela-experiment toy ') and 'sela-experiment toy: error' in err
 
 
 def test_an_unexpected_error_of_a_scenario_comes_through_as_itself(tmp_path, monkeypatch):
@@ -69,3 +71,32 @@ def test_an_unexpected_error_of_a_scenario_comes_through_as_itself(tmp_path, mon
     monkeypatch.setattr(toy, 'run', broken)
     with pytest.raises(RuntimeError, match='the simulator broke'):
         main(['toy', '--replicates', '1', '--quiet', '--out', str(tmp_path / 'out')])
+
+
+def test_noise_beyond_the_nodes_range_is_a_usage_error_and_noise_within_it_a_run(tmp_path,
+                                                                                  capsys):
+    base = ['toy', '--replicates', '2', '--max-steps', '5', '--quiet', '--methods', 'sela']
+    for noise in ('1.5', '100', '1e300'):
+        with pytest.raises(SystemExit) as exc:
+            main([*base, '--out', str(tmp_path / 'refused'), '--noise-std', noise])
+        assert exc.value.code == 2
+        assert 'at most 1 m' in capsys.readouterr().err
+    # 1 m: most outcomes are implausible (refused, as the node refuses them), yet it runs.
+    assert main([*base, '--out', str(tmp_path / 'noisy'), '--noise-std', '1']) == 0
+    doc = json.loads((tmp_path / 'noisy' / 'results.json').read_text())
+    assert doc['parameters']['noise_std'] == 1.0 and len(doc['methods']['sela']['steps']) == 2
+
+
+def test_methods_are_each_run_once_and_none_is_said_as_such(tmp_path, capsys):
+    from sela_ros.experiments.arguments import method_list
+
+    assert method_list('sela,oracle,sela') == ['sela', 'oracle']
+    for text in ('', ' , '):
+        with pytest.raises(SystemExit) as exc:
+            main(['toy', '--replicates', '1', '--out', str(tmp_path), '--methods', text])
+        assert exc.value.code == 2
+        assert 'expected at least one method' in capsys.readouterr().err
+    assert main(['toy', '--replicates', '2', '--max-steps', '3', '--quiet', '--out',
+                 str(tmp_path / 'twice'), '--methods', 'sela,sela']) == 0
+    doc = json.loads((tmp_path / 'twice' / 'results.json').read_text())
+    assert list(doc['methods']) == ['sela'] and len(doc['methods']['sela']['steps']) == 2

@@ -91,6 +91,18 @@ def test_a_damage_names_the_robot_s_own_legs(name):
         robot.parse_damage(f'block:no_such_leg.{robot.vocabulary.joints[0]}')
 
 
+def test_a_damage_kind_the_robot_does_not_take_is_said_so_with_the_kinds_it_takes():
+    a1 = get_robot('a1')
+    assert 'remove' not in a1.vocabulary.kinds
+    with pytest.raises(DamageSpecError) as exc:
+        a1.parse_damage('remove:front_left')
+    assert str(exc.value).startswith("the a1 does not take damage kind 'remove' (in "
+                                     "'remove:front_left'); valid kinds: "
+                                     + ', '.join(a1.vocabulary.kinds))
+    with pytest.raises(DamageSpecError, match="unknown damage kind 'melt'"):
+        a1.parse_damage('melt:front_left')
+
+
 def test_an_unknown_robot_is_refused_with_the_known_ones():
     with pytest.raises(ValueError, match='known robots: hexapod'):
         get_robot('octopod')

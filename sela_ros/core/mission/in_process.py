@@ -17,9 +17,12 @@ One step:
 
 A fall is got up from where the robot lies (the environment rights it); with
 ``reset_on_fall`` the robot is put back at the start instead, as the node does through
-``/sim_bridge/reset``.
+``/sim_bridge/reset``. An implausible outcome (``outcome.max_displacement``, e.g. under a
+large observation noise) is refused as the node refuses it: never learnt nor judged by the
+damage detector; once ``outcome_timeout`` has passed the step is over and the next one is
+planned from odometry, and after ``max_refused_steps`` such steps in a row the mission fails
+with the reason.
 """
-import itertools
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -40,6 +43,7 @@ from sela_ros.core.mission.stepper_io import (
     ResetDone,
     SendGait,
     StepperConfig,
+    Tick,
     VerdictReceived,
 )
 from sela_ros.core.planning import PlanningError
@@ -66,6 +70,7 @@ class MissionRun:
             steps).
         goal_steps: gaits executed when each goal of the mission was reached.
         falls: steps that ended fallen.
+        refused: gaits executed whose outcome was refused (implausible): never learnt.
     """
 
     success: bool
@@ -73,11 +78,12 @@ class MissionRun:
     logic: object
     goal_steps: list = field(default_factory=list)
     falls: int = 0
+    refused: int = 0
 
     @property
     def steps(self) -> int:
-        """Gaits executed over the whole mission."""
-        return self.logic.steps
+        """Gaits executed over the whole mission (those whose outcome was refused too)."""
+        return self.logic.steps + self.refused
 
 
 def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=None,
@@ -103,16 +109,21 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
     config = stepper_config or StepperConfig()
     stepper = MissionStepper(sela, config)
     detector = DamageDetector(detector_config or DetectorConfig())
-    clock = itertools.count()  # the stepper's time: no time-out fires in process
+    now = 0.0  # the stepper's time: one second per event, so no time-out fires unless waited
     goals = [tuple(float(v) for v in np.asarray(g, dtype=float).reshape(-1)[:2])
              for g in goals]
+
+    def handle(event, wait=0.0):
+        nonlocal now
+        now += 1.0 + wait
+        return stepper.handle(event, now)
 
     def odometry():
         return PoseObserved(as_seen_in_odometry(env.true_pose()))
 
-    commands = deque(stepper.handle(odometry(), next(clock)))
-    commands += stepper.handle(GoalsReceived(tuple(goals)), next(clock))
-    end, goal_steps, falls = None, [], 0
+    commands = deque(handle(odometry()))
+    commands += handle(GoalsReceived(tuple(goals)))
+    end, goal_steps, falls, refused = None, [], 0, 0
     while commands:
         command = commands.popleft()
         events = []
@@ -131,9 +142,19 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             fallen = getattr(env, 'falls', 0) > fell
             falls += int(fallen)
             observed = sela.motion.generic_reward(before, after)
-            events.append(OutcomeReceived(command.behavior_id, tuple(observed), tuple(after),
-                                          fallen, true_pose=tuple(env.true_pose()),
-                                          standing_start=standing, start_pose=tuple(before)))
+            learnt = stepper.logic.steps
+            commands += handle(OutcomeReceived(
+                command.behavior_id, tuple(observed), tuple(after), fallen,
+                true_pose=tuple(env.true_pose()), standing_start=standing,
+                start_pose=tuple(before)))
+            if stepper.logic.steps == learnt:
+                # Refused, as the node refuses it: the detector does not judge it either, and
+                # once outcome_timeout has passed with no other outcome the step is over; the
+                # next one starts from odometry (or the mission fails, max_refused_steps).
+                refused += 1
+                commands += handle(odometry())
+                commands += handle(Tick(), wait=config.outcome_timeout)
+                continue
             if detect:
                 verdict = detector.observe(command.predicted_gr, observed, command.sigma)
                 events.append(VerdictReceived(command.behavior_id, verdict.fire, verdict.error,
@@ -144,21 +165,16 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             env.reset()
             events += [ResetDone(True, 'robot back at the start'), odometry()]
         elif isinstance(command, PublishStatus) and 'goal_reached' in command.values:
-            goal_steps.append(stepper.logic.steps)
+            goal_steps.append(stepper.logic.steps + refused)
         elif isinstance(command, MissionEnded):
             end = command
             if command.success:
-                goal_steps.append(stepper.logic.steps)
-        learnt = stepper.logic.steps
+                goal_steps.append(stepper.logic.steps + refused)
         for event in events:
-            commands += stepper.handle(event, next(clock))
-        if isinstance(command, SendGait):
-            if stepper.logic.steps == learnt:  # the stepper refused the outcome
-                raise RuntimeError(f'outcome of command {command.behavior_id} refused: '
-                                   'the environment reported an implausible step')
-            if on_step is not None:
-                on_step(stepper.logic.records[-1])
+            commands += handle(event)
+        if isinstance(command, SendGait) and on_step is not None:
+            on_step(stepper.logic.records[-1])
     if end is None:  # the stepper stopped without a result: a bug, said as one
         raise RuntimeError(f'the mission stopped in state {stepper.state.value} without a '
                            'result')
-    return MissionRun(bool(end.success), end, stepper.logic, goal_steps, falls)
+    return MissionRun(bool(end.success), end, stepper.logic, goal_steps, falls, refused)

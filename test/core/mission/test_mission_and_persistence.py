@@ -215,6 +215,66 @@ def test_run_mission_ends_at_once_with_the_reason_when_the_goal_cannot_be_planne
     assert run.end.code == 'no_plan' and 'off the map' in run.end.reason
 
 
+class _GlitchyRobot(_FakeRobot):
+    """A :class:`_FakeRobot` whose gaits numbered in ``glitches`` (1, 2, ... in the order
+    executed) report an end pose ``jump`` metres off in x: an implausible outcome."""
+
+    def __init__(self, grs, glitches, jump=5.0):
+        super().__init__(grs)
+        self.glitches, self.jump, self.executed = set(glitches), jump, 0
+        self.gaits = []
+
+    def execute(self, index):
+        self.executed += 1
+        self.gaits.append(index)
+        pose = super().execute(index)
+        if self.executed in self.glitches:
+            pose[0] += self.jump
+        return pose
+
+
+def _glitch_archive(seed=3):
+    from types import SimpleNamespace
+
+    descriptors = np.random.default_rng(seed).random((40, 2))
+    grs = np.column_stack([descriptors * 0.4 - 0.1, np.zeros(40)])
+    return SimpleNamespace(params=np.zeros((40, 36)), generic_reward=grs, kernel_sigma=0.1,
+                           normalised_descriptors=lambda: descriptors)
+
+
+def test_run_mission_refuses_an_implausible_outcome_as_the_node_and_goes_on_from_odometry():
+    from sela_ros.core.mission import StepperConfig, make_sela, run_mission
+    from sela_ros.core.planning import straight_line_planner
+
+    archive = _glitch_archive()
+    robot = _GlitchyRobot(archive.generic_reward, glitches=[1])
+    run = run_mission(robot, make_sela(archive, {'planner.lookahead': 0.3}), [(1.0, 0.0)],
+                      straight_line_planner,
+                      stepper_config=StepperConfig(max_steps=30, adapt_on_start=True))
+    assert run.success and run.end.code == 'succeeded', run.end
+    assert run.refused == 1 and run.steps == robot.executed == len(run.logic.records) + 1
+    # Never learnt; the next step starts from odometry (the true pose), not the glitch.
+    assert len(run.logic.sela.observations[0]) == len(run.logic.records)
+    np.testing.assert_allclose(run.logic.records[0].pose,
+                               as_seen_in_odometry(archive.generic_reward[robot.gaits[0]]),
+                               atol=1e-12)
+    assert run.goal_steps == [run.steps]
+
+
+def test_run_mission_fails_with_the_reason_after_max_refused_steps_in_a_row():
+    from sela_ros.core.mission import StepperConfig, make_sela, run_mission
+    from sela_ros.core.planning import straight_line_planner
+
+    archive = _glitch_archive()
+    robot = _GlitchyRobot(archive.generic_reward, glitches=range(1, 100))
+    run = run_mission(robot, make_sela(archive, {'planner.lookahead': 0.3}), [(1.0, 0.0)],
+                      straight_line_planner,
+                      stepper_config=StepperConfig(max_steps=30, max_refused_steps=4))
+    assert not run.success and run.end.code == 'failed'
+    assert '4 outcome(s) in a row refused' in run.end.reason, run.end.reason
+    assert run.refused == run.steps == robot.executed == 4 and not run.logic.records
+
+
 def test_a_robot_that_starts_off_the_planners_map_is_led_onto_it_and_reaches_the_goal():
     from types import SimpleNamespace
 
