@@ -48,15 +48,16 @@ def noise_std(text):
 #: The range of ``--kernel-sigma`` and ``--fall-kernel-sigma`` (on descriptors normalised to
 #: [0, 1]): below it the kernel's squared length underflows (a division by zero, NaN
 #: predictions) long before it stops meaning "each gait on its own"; above it the node's.
-MIN_KERNEL_SIGMA, MAX_KERNEL_SIGMA = 1e-3, 100.0
 
 
 def kernel_sigma(text):
-    """A GP kernel length in [:data:`MIN_KERNEL_SIGMA`, :data:`MAX_KERNEL_SIGMA`]."""
+    """A GP kernel length in [``gp.MIN_SIGMA``, ``gp.MAX_SIGMA``]."""
+    from sela_ros.core.learning.gp import MAX_SIGMA, MIN_SIGMA
+
     value = non_negative_float(text)
-    if not MIN_KERNEL_SIGMA <= value <= MAX_KERNEL_SIGMA:
+    if not MIN_SIGMA <= value <= MAX_SIGMA:
         raise argparse.ArgumentTypeError(
-            f'expected a kernel length in [{MIN_KERNEL_SIGMA:g}, {MAX_KERNEL_SIGMA:g}] '
+            f'expected a kernel length in [{MIN_SIGMA:g}, {MAX_SIGMA:g}] '
             f'(on normalised descriptors), got {text!r}')
     return value
 

@@ -1,6 +1,6 @@
 """The ``sela_adapter`` node's parameters: names, defaults, descriptions, ranges, and what
 they configure (SELA and the mission stepper). Declared through :func:`params.declare`."""
-from sela_ros.core.learning import AUTO, NONE, SELAConfig
+from sela_ros.core.learning import AUTO, NONE, SELAConfig, gp
 from sela_ros.core.mission import ON_DETECTION, StepperConfig
 from sela_ros.core.storage import persistence
 from sela_ros.core.validation import archive_displacement_limit
@@ -12,8 +12,8 @@ PARAMETERS = (
          "(the 8-D map), '8d' / '2d' = the shipped ones by name; can change between steps, to "
          "one built for the simulator's physics (sim_bridge's archive)"),
     Spec('gp.kernel.sigma', AUTO, "kernel length on normalised descriptors; auto = the "
-         "archive's (0.1, the paper's, for a 2-D map; 0.3 for the 8-D map)", low=0.0,
-         high=100.0, kind='double', word=AUTO, read_only=True),
+         "archive's (0.1, the paper's, for a 2-D map; 0.3 for the 8-D map)", low=gp.MIN_SIGMA,
+         high=gp.MAX_SIGMA, kind='double', word=AUTO, read_only=True),
     Spec('gp.noise', 0.001, 'GP noise variance', low=0.0, high=100.0, read_only=True),
     Spec('gp.hyper.sd', NONE if SELAConfig.gp_hyper_sd is None
          else SELAConfig.gp_hyper_sd, 'prior standard deviation of the logs of the GP kernel '
@@ -58,8 +58,8 @@ PARAMETERS = (
          'cost x risk off every gait (0: only the threshold)', low=0.0, high=100.0,
          unit=' m', read_only=True),
     Spec('fall.kernel.sigma', AUTO, "kernel length of the fall GP; auto = the archive's (0.1 "
-         'for a 2-D map, 0.12 for the 8-D map)', low=0.0, high=100.0, kind='double',
-         word=AUTO, read_only=True),
+         'for a 2-D map, 0.12 for the 8-D map)', low=gp.MIN_SIGMA, high=gp.MAX_SIGMA,
+         kind='double', word=AUTO, read_only=True),
     Spec('planner.lookahead', SELAConfig.planner_lookahead, 'distance along the path to the '
          'waypoint of the reward', low=0.01, high=100.0, unit=' m', read_only=True),
     Spec('planner.reach', NONE if SELAConfig.planner_reach is None

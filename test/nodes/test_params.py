@@ -2,6 +2,7 @@
 import math
 import sys
 
+import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 
@@ -164,3 +165,13 @@ def test_yamls_null_for_a_parameter_not_set_by_default_is_not_set():
     assert coerce(Spec('map.file', None, 'a file', kind='string'), 'null') == 'null'
     assert coerce(Spec('goal.eps', 0.1, 'm'), 'null') == 'null'
     assert check(Spec('goal.eps', 0.1, 'm'), 'null') is not None
+
+
+@pytest.mark.parametrize('name', ['gp.kernel.sigma', 'fall.kernel.sigma'])
+def test_a_kernel_length_too_short_for_the_gp_is_refused_with_its_range(name):
+    from sela_ros.core.learning.gp import MIN_SIGMA
+    from sela_ros.nodes.adapter_params import PARAMETERS as ADAPTER
+
+    spec = next(s for s in ADAPTER if s.name == name)
+    assert check(spec, MIN_SIGMA) is None and check(spec, 0.3) is None
+    assert check(spec, 1e-300) == 'must be a number in [0.001, 100] or auto, got 1e-300'

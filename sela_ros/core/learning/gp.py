@@ -14,6 +14,8 @@ from sela_ros.core.validation import check_number, finite_array
 DEFAULT_SIGMA = 0.1
 DEFAULT_VARIANCE = 1.0
 DEFAULT_NOISE = 0.001
+#: The kernel lengths (on normalised descriptors) a GP is given: a shorter one underflows.
+MIN_SIGMA, MAX_SIGMA = 1e-3, 100.0
 
 
 def exponential_kernel(a, b, sigma=DEFAULT_SIGMA, variance=DEFAULT_VARIANCE):
