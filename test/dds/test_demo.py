@@ -75,6 +75,26 @@ def test_demo_runs_the_hardware_path_with_interface_trajectory(tmp_path, ros_env
     assert 'gait executor ready' in (out / 'gait_executor.log').read_text()
 
 
+def test_keep_learning_resumes_what_the_previous_demo_learned(tmp_path, ros_env):
+    import re
+
+    out = tmp_path / 'demo'
+    runs = []
+    for goal, extra in (('0.8,0.4', []), ('-0.6,0.6', ['--keep-learning'])):
+        proc = subprocess.run(
+            [str(executable('sela-demo')), '--goal', goal, '--out', str(out),
+             '--timeout', '400', *extra],
+            env=ros_env, capture_output=True, text=True, timeout=480)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        runs.append(json.loads((out / 'summary.json').read_text()))
+        state = json.loads((out / 'sela_adapter_state.json').read_text())
+        assert state['learned_on'] == 'simulator sim_bridge'
+    assert runs[0]['steps'] > 0
+    log = (out / 'sela_adapter.log').read_text()
+    resumed = re.search(r'resumed from \S+: (\d+) observation', log)
+    assert resumed and int(resumed.group(1)) > 0, log[-2000:]
+
+
 def test_demo_rejects_bad_arguments_with_usage(ros_env):
     for args, reason in ((['--damage', 'remove:middle_centre'], 'middle_centre'),
                          (['--goal', '2;2'], '--goal'),
