@@ -4,6 +4,7 @@ import argparse
 import math
 import re
 
+from sela_ros.core.learning.gp import MAX_SIGMA, MIN_SIGMA
 from sela_ros.experiments.baselines import METHODS
 
 #: Default std (m) of the noise on observed positions in both experiments. The paper writes
@@ -45,15 +46,9 @@ def noise_std(text):
     return value
 
 
-#: The range of ``--kernel-sigma`` and ``--fall-kernel-sigma`` (on descriptors normalised to
-#: [0, 1]): below it the kernel's squared length underflows (a division by zero, NaN
-#: predictions) long before it stops meaning "each gait on its own"; above it the node's.
-
-
 def kernel_sigma(text):
-    """A GP kernel length in [``gp.MIN_SIGMA``, ``gp.MAX_SIGMA``]."""
-    from sela_ros.core.learning.gp import MAX_SIGMA, MIN_SIGMA
-
+    """A GP kernel length in [``gp.MIN_SIGMA``, ``gp.MAX_SIGMA``], the node's range: a shorter
+    one underflows (a division by zero, NaN predictions)."""
     value = non_negative_float(text)
     if not MIN_SIGMA <= value <= MAX_SIGMA:
         raise argparse.ArgumentTypeError(
