@@ -5,16 +5,17 @@ its IMU. See docs/hardware.md.
 
 Usage: ``ros2 launch sela_ros sela_hardware_launch.py odometry_topic:=/mocap/odom
 [imu_topic:=/imu/data] [trajectory_topic:=...] [namespace:=/robot1] [archive:=...]
-[map:=...]``.
+[map:=...] [map_frame:=map]``.
 
 Arguments: params_file (the installed config/sela.yaml), odometry_topic (odom),
 imu_topic ('' = falls told from the odometry's orientation), trajectory_topic (the
 controller's command topic, joint_trajectory_controller/joint_trajectory), archive ('' = the
 shipped one), map (the planner's map YAML; '' = the map.* parameters), namespace ('' = the
-root). Every node runs on the wall clock (no simulator publishes /clock); the planner and the
-adapter take the robot's pose from the same odometry (``hexapod/odom`` remapped to it); the
-adapter checks no simulator's settings against the archive, and the damage detector watches
-the planner, the adapter and the gait executor.
+root), map_frame ('' = goals only in the odometry's frame; map when the odometry is the
+map's, as motion capture's). Every node runs on the wall clock (no simulator publishes
+/clock); the planner and the adapter take the robot's pose from the same odometry
+(``hexapod/odom`` remapped to it); the adapter checks no simulator's settings against the
+archive, and the damage detector watches the planner, the adapter and the gait executor.
 """
 import os
 
@@ -54,6 +55,11 @@ def generate_launch_description():
                               description="planner map YAML ('' = the map.* parameters)"),
         DeclareLaunchArgument('namespace', default_value='',
                               description="namespace of the whole stack ('' = the root)"),
+        DeclareLaunchArgument('map_frame', default_value='',
+                              description="a frame whose goals are taken as given in the "
+                              "odometry's ('' = none: with a localisation stack, map -> odom "
+                              'is not the identity; map when the odometry is in the map frame, '
+                              'e.g. motion capture)'),
     ]
     # The robot's pose for the planner and the adapter: the executor's odometry.
     odometry = [('hexapod/odom', LaunchConfiguration('odometry_topic'))]
@@ -66,14 +72,16 @@ def generate_launch_description():
                  'imu_topic': LaunchConfiguration('imu_topic'),
                  'trajectory_topic': LaunchConfiguration('trajectory_topic')}]),
         Node(package='sela_ros', executable='planner', name='planner', output='screen',
-             parameters=[params, WALL_CLOCK, {'map.file': LaunchConfiguration('map')}],
+             parameters=[params, WALL_CLOCK, {'map.file': LaunchConfiguration('map'),
+                                               'map_frame': LaunchConfiguration('map_frame')}],
              remappings=odometry),
         Node(package='sela_ros', executable='damage_detector', name='damage_detector',
              output='screen', parameters=[params, WALL_CLOCK, {
                  'heartbeat.nodes': ['planner', 'sela_adapter', 'gait_executor']}]),
         Node(package='sela_ros', executable='sela_adapter', name='sela_adapter',
              output='screen', parameters=[params, WALL_CLOCK, {
-                 'archive': LaunchConfiguration('archive'), 'simulator_node': ''}],
+                 'archive': LaunchConfiguration('archive'), 'simulator_node': '',
+                 'map_frame': LaunchConfiguration('map_frame')}],
              remappings=odometry),
     ]
     stack = GroupAction([PushRosNamespace(LaunchConfiguration('namespace'))] + nodes)

@@ -137,10 +137,16 @@ class DamageSpec:
         return self.canonical()
 
 
+#: The form of each kind of item that names a leg, for an error that cannot find the leg.
+LEG_FORMS = {'remove': 'remove:<leg>', 'shorten': 'shorten:<leg>[:<factor>]',
+             'block': 'block:<leg>.<joint>[=<angle>]', 'weaken': 'weaken:<leg>.<joint>[=<share>]'}
+
+
 def _leg(name: str, item: str, vocabulary: Vocabulary = HEXAPOD) -> str:
     if name not in vocabulary.legs:
-        raise DamageSpecError(f'unknown leg {name!r} in damage item {item!r}; valid legs: '
-                              f'{", ".join(vocabulary.legs)}')
+        form = LEG_FORMS[item.partition(':')[0]]
+        raise DamageSpecError(f'unknown leg {name!r} in damage item {item!r} (expected '
+                              f'{form}); valid legs: {", ".join(vocabulary.legs)}')
     return name
 
 

@@ -118,6 +118,9 @@ PARAMETERS = (
          'trajectories in, IMU and the observed odometry out), for the gait executor',
          read_only=True, rule=lambda v: None if v in INTERFACES
          else f'must be one of {", ".join(INTERFACES)}, got {v!r}'),
+    Spec('map_frame', 'map', "the odometry frame's parent, the identity (the simulator's "
+         "odometry does not drift), on /tf_static: RViz with this fixed frame draws the robot "
+         "('' = none)", read_only=True),
 )
 
 
@@ -259,6 +262,10 @@ class SimBridge(HardwareFace, Node):
         self.tf_pub = None
         if ifc.TF.type is not None:
             self.tf_pub = ifc.publisher(self, ifc.TF)
+            if values['map_frame']:
+                self.tf_static_pub = ifc.publisher(self, ifc.TF_STATIC)
+                self.tf_static_pub.publish(ifc.TF_STATIC.type(
+                    transforms=[self._map_transform(values['map_frame'])]))
         else:
             self.get_logger().warn('tf2_msgs is not installed: no /tf (odometry only)')
         self.description_pub = ifc.publisher(self, ifc.ROBOT_DESCRIPTION)
@@ -477,6 +484,15 @@ class SimBridge(HardwareFace, Node):
         js.position = [float(v) for v in positions]
         js.velocity = [float(v) for v in velocities]
         self.joint_pub.publish(js)
+
+    def _map_transform(self, map_frame):
+        """``map_frame`` -> odom, the identity, stamped at the simulation's start (a static
+        transform holds at every time)."""
+        tf = TransformStamped()
+        tf.header.frame_id = map_frame
+        tf.child_frame_id = 'odom'  # the odometry's frame (conv.odometry_msg)
+        tf.transform.rotation.w = 1.0
+        return tf
 
     def _base_transform(self, odom):
         """odom -> base_link: the body's full pose in the simulator (height, roll, pitch

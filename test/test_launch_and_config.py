@@ -239,6 +239,10 @@ def test_the_hardware_launch_runs_the_stack_on_a_robots_own_topics(monkeypatch):
         assert remap[0] == ifc.ODOM.name and remap[1].args[0] == 'odometry_topic'
     adapter = nodes['sela_adapter'].kwargs['parameters'][2]
     assert adapter['simulator_node'] == ''
+    # On a robot a map frame is a localisation's: goals in it only when the user says so.
+    assert arguments['map_frame'] == ''
+    for name in ('planner', 'sela_adapter'):
+        assert nodes[name].kwargs['parameters'][2]['map_frame'].args[0] == 'map_frame'
     detector = nodes['damage_detector'].kwargs['parameters'][2]
     assert 'sim_bridge' not in detector['heartbeat.nodes']
     assert set(detector['heartbeat.nodes']) <= set(ifc.ALIVE)

@@ -238,9 +238,9 @@ class MissionActions:
     def _goals_of(self, action, request):
         """The mission's goals in the odom frame, the poses as sent and the rank of the first
         goal among them (FollowWaypoints' ``goal_index``; ``number_of_loops`` more rounds)."""
-        frame = self.node.frame_id
+        frames = self.node.goal_frames
         if action is ifc.NAVIGATE_TO_POSE:
-            goal = tuple(conv.goal_from_pose_stamped(request.pose, frame))
+            goal = tuple(conv.goal_from_pose_stamped(request.pose, frames))
             return [goal], [request.pose], 0
         poses = list(request.poses)
         if not poses:
@@ -252,7 +252,7 @@ class MissionActions:
         path = Path(poses=poses)
         path.header.frame_id = poses[0].header.frame_id
         # Checked once; the loops repeat the goals, bounded by max_waypoints (_refusal).
-        once = list(conv.goals_from_path(path, frame))
+        once = list(conv.goals_from_path(path, frames))
         loops = int(getattr(request, 'number_of_loops', 0))
         return once[first:] + once * loops, poses, first
 

@@ -49,6 +49,7 @@ class SelaAdapter(Node):
         super().__init__(ifc.SELA_ADAPTER)
         self.values = declare(self, params.PARAMETERS, on_change=self.parameters_callback)
         self.frame_id = self.values['frame_id']
+        self.goal_frames = conv.goal_frames(self.frame_id, self.values['map_frame'])
         # The planner's map (latched) rules out goals off it at once.
         self.archive = self.archive_path = self.stepper = self.map = self.priors = None
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -73,9 +74,9 @@ class SelaAdapter(Node):
         self.markers = markers.MarkerPublisher(self, self.pubs['markers'], self.frame_id)
         # Each input message becomes one stepper event; a malformed one is logged, dropped.
         for topic, what, event in (
-                (ifc.GOAL, 'goal rejected', lambda m: conv.goal_event(m, self.frame_id)),
+                (ifc.GOAL, 'goal rejected', lambda m: conv.goal_event(m, self.goal_frames)),
                 (ifc.GOAL_PATH, 'goal path rejected',
-                 lambda m: conv.goals_event(m, self.frame_id)),
+                 lambda m: conv.goals_event(m, self.goal_frames)),
                 (ifc.ODOM, 'ignored odometry', conv.odometry_event),
                 (ifc.OUTCOME, 'ignored outcome', conv.outcome_event),
                 (ifc.VERDICT, 'ignored verdict', conv.verdict_event)):

@@ -109,6 +109,9 @@ PARAMETERS = (
     Spec('adapt_on_start', StepperConfig.adapt_on_start, 'learn from the first step (false: '
          'trust the map until the damage detector fires)', read_only=True),
     Spec('frame_id', 'odom', 'frame of goals, poses and plans', read_only=True),
+    Spec('map_frame', 'map', "a frame taken as frame_id: goals in it are used as given in "
+         'frame_id (no localisation here: the odometry is the map, as in the simulator or '
+         "with motion capture; '' = refused)", read_only=True),
     Spec('state_file', '', "where learning is saved after every step ('' = "
          '~/.ros/sela_ros/[<namespace>/]sela_adapter_state.json); a regular file or none yet '
          '(a symbolic link is written through), one adapter\'s alone (a second adapter given '

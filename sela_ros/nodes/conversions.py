@@ -251,12 +251,12 @@ def odometry_event(msg):
     return PoseObserved(tuple(pose_from_odometry(msg)), time_from_msg(msg.header.stamp))
 
 
-def goal_event(msg, expected_frame='odom'):
-    return GoalReceived(tuple(goal_from_pose_stamped(msg, expected_frame)))
+def goal_event(msg, frames='odom'):
+    return GoalReceived(tuple(goal_from_pose_stamped(msg, frames)))
 
 
-def goals_event(msg, expected_frame='odom'):
-    return GoalsReceived(tuple(goals_from_path(msg, expected_frame)))
+def goals_event(msg, frames='odom'):
+    return GoalsReceived(tuple(goals_from_path(msg, frames)))
 
 
 def prediction_to_msg(behavior_id, generic_reward, sigma=0.0):
@@ -325,30 +325,52 @@ def pose_from_odometry(msg):
     return pose
 
 
-def goal_from_pose_stamped(msg, expected_frame='odom', name='goal_pose'):
-    """Return the goal (x, y) of a PoseStamped; the frame must be ``expected_frame``.
-    ``name``: what a refusal calls it (a topic, a request's field)."""
+def goal_frames(frame_id, map_frame=''):
+    """The frames a goal may be given in: ``frame_id`` (the odometry's), then ``map_frame``
+    taken as the same frame (no localisation here: the odometry is the map), unless ''."""
+    return (frame_id,) + ((map_frame,) if map_frame and map_frame != frame_id else ())
+
+
+def _frames(frames):
+    return (frames,) if isinstance(frames, str) else tuple(frames)
+
+
+def frame_accepted(frame, frames):
+    """Whether a header's ``frame`` ('' = the planning frame) is one of ``frames``."""
+    return frame == '' or frame in _frames(frames)
+
+
+def send_in(frames):
+    """How a refusal says where to send a pose: ``'odom' (or 'map', taken as 'odom')``."""
+    first, *others = _frames(frames)
+    taken = ''.join(f" (or '{f}', taken as '{first}')" for f in others)
+    return f"'{first}'{taken}"
+
+
+def goal_from_pose_stamped(msg, frames='odom', name='goal_pose'):
+    """Return the goal (x, y) of a PoseStamped; its frame must be one of ``frames`` (a name
+    or :func:`goal_frames`). ``name``: what a refusal calls it (a topic, a request's field)."""
     frame = msg.header.frame_id
-    if frame not in (expected_frame, ''):
+    if not frame_accepted(frame, frames):
         raise MessageError(f"{name}: frame '{frame}' is not supported; "
-                           f"send it in '{expected_frame}'")
+                           f"send it in {send_in(frames)}")
     return _finite_array([msg.pose.position.x, msg.pose.position.y], name, 2,
                          labels=POSITION_XY)
 
 
-def goals_from_path(msg, expected_frame='odom'):
+def goals_from_path(msg, frames='odom'):
     """The goals ``[(x, y), ...]`` of a mission sent as a nav_msgs/Path, in order.
 
-    Each pose's frame (or, when empty, the path's) must be ``expected_frame``.
+    Each pose's frame (or, when empty, the path's) must be one of ``frames``.
     """
     if not msg.poses:
         raise MessageError('goal_path: the path has no poses (expected the goals in order)')
     goals = []
     for i, pose in enumerate(msg.poses):
         frame = pose.header.frame_id or msg.header.frame_id
-        if frame not in (expected_frame, ''):
+        if not frame_accepted(frame, frames):
             raise MessageError(f"goal_path: pose {i} is in frame '{frame}'; send the goals "
-                               f"in '{expected_frame}'")
+                               f"in {send_in(frames)}")
         goals.append(tuple(_finite_array([pose.pose.position.x, pose.pose.position.y],
                                          f'goal_path pose {i}', 2, labels=POSITION_XY)))
     return goals

@@ -164,6 +164,9 @@ ALIVE = {name: Topic(f'{name}/alive', Empty, ALIVE_QOS, owner=name)
 # For RViz and Foxglove. ``tf`` is relative (``/tf`` in the root namespace): a namespaced
 # robot has its own tree, and its RViz remaps /tf:=tf (the launch file does).
 TF = Topic('tf', TFMessage, TF_QOS)  # odom -> base_link (REP-105), from sim_bridge
+# map -> odom, the identity (the simulator's odometry does not drift), latched as tf2_ros's
+# static broadcaster's: RViz and Foxglove with the fixed frame map draw the robot.
+TF_STATIC = Topic('tf_static', TFMessage, LATCHED_QOS)
 ROBOT_DESCRIPTION = Topic('robot_description', String, LATCHED_QOS)  # URDF with the damage
 MARKERS = Topic('sela/markers', MarkerArray, STATE_QOS)  # what SELA predicts and chooses
 # The hardware face (ros2_control's): a joint_trajectory_controller's command topic (its

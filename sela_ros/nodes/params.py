@@ -23,6 +23,7 @@ for one release.
 
 The checks are ROS-free (property-tested); only :func:`declare` touches rclpy.
 """
+import difflib
 import math
 import sys
 from collections.abc import Callable
@@ -184,6 +185,15 @@ def _as_double(value):
     return _is_int(value) and abs(value) <= sys.float_info.max
 
 
+def unknown_parameter_message(node_name, name, known):
+    """The reason ``ros2 param set`` prints for a name the node does not have: the closest
+    names it has, and how to list them."""
+    close = difflib.get_close_matches(name, sorted(known), n=3, cutoff=0.6)
+    hint = f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ''
+    return (f'{node_name} has no parameter {name!r}{hint}; `ros2 param list {node_name}` '
+            'lists its parameters')
+
+
 def declare(node, specs, on_change=None):
     """Declare ``specs`` on ``node`` with descriptors; validate now and on every set.
 
@@ -206,13 +216,25 @@ def declare(node, specs, on_change=None):
         ParameterDescriptor,
         SetParametersResult,
     )
-    from rclpy.exceptions import ParameterException
+    from rclpy.exceptions import ParameterException, ParameterNotDeclaredException
     from rclpy.parameter import Parameter
+
+    class UnknownParameter(ParameterNotDeclaredException):
+        """rclpy's refusal of an undeclared name, worded with the names the node has."""
+
+        def __init__(self, name):
+            Exception.__init__(self, unknown_parameter_message(
+                node.get_fully_qualified_name(), name, node.list_parameters([], 0).names))
 
     specs = {spec.name: spec for spec in specs}
     declaring = [True]
 
     def coerce_batch(params):
+        # rclpy's own refusal of an undeclared name comes after this callback and names
+        # none of the parameters (its message lists an exhausted generator): said here.
+        for p in params:
+            if not declaring[0] and not node.has_parameter(p.name):
+                raise UnknownParameter(p.name)
         for p in params:
             if p.name in specs and zero_for_word(specs[p.name], p.value):
                 node.get_logger().warn(word_warning(specs[p.name]))

@@ -97,6 +97,9 @@ PARAMETERS = (
     Spec('planner.inflation', DEFAULT_INFLATION, 'clearance kept from obstacles', low=0.0,
          high=10.0, unit=' m'),
     Spec('frame_id', 'odom', 'frame of goals, paths and waypoints', read_only=True),
+    Spec('map_frame', 'map', 'a frame taken as frame_id: goals and paths in it are used as '
+         'given in frame_id (no localisation here: the odometry is the map, as in the simulator '
+         "or with motion capture; '' = refused)", read_only=True),
 )
 
 
@@ -112,6 +115,7 @@ class PlannerNode(Node):
         self._pending_grid = None
         values = declare(self, PARAMETERS, on_change=self.parameters_callback)
         self.frame_id = values['frame_id']
+        self.goal_frames = conv.goal_frames(self.frame_id, values['map_frame'])
         self.unknown_is_occupied = values['map.unknown_is_occupied']
         self.inflation = values['planner.inflation']
         self.map_error = None
@@ -267,7 +271,7 @@ class PlannerNode(Node):
     @guard
     def goal_callback(self, msg):
         try:
-            goal = conv.goal_from_pose_stamped(msg, self.frame_id)
+            goal = conv.goal_from_pose_stamped(msg, self.goal_frames)
             problem = self.grid.goal_problem(goal)
             if problem:
                 raise PlanningError(f'goal ({goal[0]:.2f}, {goal[1]:.2f}) is {problem}')
@@ -286,12 +290,12 @@ class PlannerNode(Node):
     @guard_service
     def make_plan_callback(self, request, response):
         try:
-            start = conv.goal_from_pose_stamped(request.start, self.frame_id, 'start')
+            start = conv.goal_from_pose_stamped(request.start, self.goal_frames, 'start')
             if (request.goal.header.frame_id == '' and request.goal.pose.position.x == 0.0
                     and request.goal.pose.position.y == 0.0 and self.goal is not None):
                 goal = self.goal  # an empty goal means: the current /goal_pose
             else:
-                goal = conv.goal_from_pose_stamped(request.goal, self.frame_id, 'goal')
+                goal = conv.goal_from_pose_stamped(request.goal, self.goal_frames, 'goal')
             response.plan = self._plan(start, goal, request.start.header.stamp)
         except (conv.MessageError, PlanningError, ValueError) as exc:
             self._report(DiagnosticStatus.ERROR, f'make_plan failed: {exc}')
@@ -331,16 +335,16 @@ class PlannerNode(Node):
         poses = list(request.goals) if through else [request.goal]
         sent = poses + ([request.start] if request.use_start else [])
         frame = next((p.header.frame_id for p in sent
-                      if p.header.frame_id not in ('', self.frame_id)), None)
-        if frame is not None:  # no tf here: only the planning frame is known
+                      if not conv.frame_accepted(p.header.frame_id, self.goal_frames)), None)
+        if frame is not None:  # no tf here: only the planning frame (and the map's) is known
             raise _Refused(result.TF_ERROR, f"frame '{frame}' is not supported; send the poses "
-                           f"in '{self.frame_id}'")
+                           f"in {conv.send_in(self.goal_frames)}")
         try:
             names = [f'goals[{i}]' for i in range(len(poses))] if through else ['goal']
-            goals = [conv.goal_from_pose_stamped(p, self.frame_id, n)
+            goals = [conv.goal_from_pose_stamped(p, self.goal_frames, n)
                      for p, n in zip(poses, names)]
             if request.use_start:
-                start = conv.goal_from_pose_stamped(request.start, self.frame_id, 'start')
+                start = conv.goal_from_pose_stamped(request.start, self.goal_frames, 'start')
             elif self.pose is None:
                 raise _Refused(result.UNKNOWN, 'no odometry yet: the robot\'s pose is not '
                                'known (set use_start and a start)')

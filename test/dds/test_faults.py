@@ -87,9 +87,10 @@ def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
     diag.publish_goal(40.0, 0.0)
     client.spin_until(lambda: any('off the map' in e for e in diag.errors('planner')), 30,
                       'goal off the map reported')
-    diag.publish_goal(1.0, 0.0, frame_id='map')
+    diag.publish_goal(1.0, 0.0, frame_id='base_link')
     for who in ('planner', 'sela_adapter'):  # both say it where the user looks
-        client.spin_until(lambda n=who: any("frame 'map'" in e for e in diag.errors(n)), 30,
+        client.spin_until(lambda n=who: any("frame 'base_link'" in e for e in diag.errors(n)),
+                          30,
                           f'goal in another frame reported by the {who}')
     diag.publish_goal(math.nan, 0.0)
     for who in ('planner', 'sela_adapter'):
@@ -115,6 +116,12 @@ def test_bad_input_gets_a_clear_error_and_no_node_crashes(graph, tmp_path):
     assert not r.successful and 'detection.window' in r.reason
     r = _set(client, 'sela_adapter', 'max_steps', -3, ParameterType.PARAMETER_INTEGER)
     assert not r.successful and 'max_steps' in r.reason
+    # A name the node does not have: said, with the closest names it has.
+    r = _set(client, 'sela_adapter', 'gp.kernel.length', 0.4, ParameterType.PARAMETER_DOUBLE)
+    assert not r.successful and "no parameter 'gp.kernel.length'" in r.reason, r.reason
+    assert "'gp.kernel.sigma'" in r.reason
+    r = _set(client, 'sim_bridge', 'damages', 'remove:rear_left', ParameterType.PARAMETER_STRING)
+    assert not r.successful and "/sim_bridge has no parameter 'damages'" in r.reason, r.reason
     # A truncated archive file is refused, and the adapter keeps the one it had.
     broken = tmp_path / 'broken.npz'
     broken.write_bytes(b'PK\x03\x04 truncated')

@@ -279,6 +279,10 @@ def test_compute_path_to_pose_answers_as_nav2s_planner_server(planner):
     assert np.allclose(path[0], (0.0, 0.0)) and np.allclose(path[-1], (4.5, 4.5))
     assert _segments_free(maze, path) and len(path) > 3
     assert answer.result.path.header.frame_id == 'odom'
+    # nav2's getPath sends poses in map: the same frame here, the path the same.
+    in_map = ask((4.5, 4.5), start=(0.0, 0.0), frame_id='map')
+    assert in_map.status == GoalStatus.STATUS_SUCCEEDED, in_map.result.error_msg
+    assert np.allclose(conv.path_from_msg(in_map.result.path), path)
     wall = next(maze.cell_to_world((ix, iy)) for iy, ix in np.argwhere(maze.occupied)
                 if maze.in_map(maze.cell_to_world((ix, iy))))
     for kwargs, code, words in (
@@ -289,8 +293,8 @@ def test_compute_path_to_pose_answers_as_nav2s_planner_server(planner):
              'inside an obstacle'),
             ({'goal': (4.5, 4.5), 'start': (-50.0, 0.0)}, action.Result.START_OUTSIDE_MAP,
              'off the map'),
-            ({'goal': (4.5, 4.5), 'start': (0.0, 0.0), 'frame_id': 'map'},
-             action.Result.TF_ERROR, "frame 'map'"),
+            ({'goal': (4.5, 4.5), 'start': (0.0, 0.0), 'frame_id': 'base_link'},
+             action.Result.TF_ERROR, "frame 'base_link'"),
             ({'goal': (4.5, 4.5), 'start': (0.0, 0.0), 'planner_id': 'Smac'},
              action.Result.INVALID_PLANNER, "'Smac'")):
         answer = ask(**kwargs)

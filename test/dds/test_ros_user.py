@@ -38,14 +38,22 @@ def test_sim_publishes_tf_and_the_damaged_robot_description(client):
     nodes = NodeProcesses({'sim_bridge': {'damage': 'remove:middle_right'}},
                           names=('sim_bridge',))
     try:
-        transforms, descriptions = [], []
+        transforms, descriptions, static = [], [], []
         client.node.create_subscription(TFMessage, '/tf',
                                         lambda m: transforms.extend(m.transforms), 10)
+        client.node.create_subscription(TFMessage, '/tf_static',
+                                        lambda m: static.extend(m.transforms), LATCHED_QOS)
         client.node.create_subscription(String, '/robot_description',
                                         lambda m: descriptions.append(m.data), LATCHED_QOS)
-        client.spin_until(lambda: transforms and descriptions, 60, '/tf and /robot_description')
+        client.spin_until(lambda: transforms and descriptions and static, 60,
+                          '/tf, /tf_static and /robot_description')
         tf = transforms[-1]
         assert (tf.header.frame_id, tf.child_frame_id) == ('odom', 'base_link')
+        # map -> odom, the identity, latched: RViz with the fixed frame map draws the robot.
+        (parent,) = static
+        assert (parent.header.frame_id, parent.child_frame_id) == ('map', 'odom')
+        t, r = parent.transform.translation, parent.transform.rotation
+        assert (t.x, t.y, t.z, r.x, r.y, r.z, r.w) == (0, 0, 0, 0, 0, 0, 1)
         assert 0.05 < tf.transform.translation.z < 0.5  # the body stands above the ground
         urdf = descriptions[-1]
         assert '<robot name="sela_hexapod">' in urdf and 'damage: remove:middle_right' in urdf

@@ -14,7 +14,8 @@ from sela_ros.nodes.adapter_actions import MissionActions, goal_count
 @pytest.fixture
 def actions():
     stand_in = MissionActions.__new__(MissionActions)  # no node: only the translation
-    stand_in.node = SimpleNamespace(frame_id='odom', map=None)
+    stand_in.node = SimpleNamespace(frame_id='odom', goal_frames=conv.goal_frames('odom', 'map'),
+                                    map=None)
     return stand_in
 
 
@@ -41,19 +42,27 @@ def test_follow_waypoints_starts_at_goal_index_and_loops(actions):
 @pytest.mark.parametrize('goal, problem', [
     (FollowWaypoints.Goal(poses=[]), 'no poses'),
     (FollowWaypoints.Goal(poses=_poses((1, 0)), goal_index=1), 'past the 1 poses'),
-    (FollowWaypoints.Goal(poses=[conv.pose_stamped((1, 0), frame_id='map')]), "frame 'map'"),
+    (FollowWaypoints.Goal(poses=[conv.pose_stamped((1, 0), frame_id='base_link')]),
+     "frame 'base_link'.*send the goals in 'odom' \\(or 'map', taken as 'odom'\\)"),
 ])
 def test_a_bad_waypoint_goal_says_what_is_wrong(actions, goal, problem):
     with pytest.raises(conv.MessageError, match=problem):
         actions._goals_of(ifc.FOLLOW_WAYPOINTS, goal)
 
 
-def test_navigate_to_pose_takes_the_pose_in_the_odom_frame(actions):
+def test_navigate_to_pose_takes_the_pose_in_the_odom_frame_or_the_map_frame(actions):
     goal = NavigateToPose.Goal(pose=conv.pose_stamped((0.5, -0.2), frame_id='odom'))
     assert actions._goals_of(ifc.NAVIGATE_TO_POSE, goal)[0] == [(0.5, -0.2)]
-    with pytest.raises(conv.MessageError, match="frame 'map'"):
+    # nav2's clients send goals in map: the same frame here (no localisation).
+    goal = NavigateToPose.Goal(pose=conv.pose_stamped((0.5, -0.2), frame_id='map'))
+    assert actions._goals_of(ifc.NAVIGATE_TO_POSE, goal)[0] == [(0.5, -0.2)]
+    with pytest.raises(conv.MessageError, match="frame 'base_link'"):
         actions._goals_of(ifc.NAVIGATE_TO_POSE, NavigateToPose.Goal(
-            pose=conv.pose_stamped((0.5, -0.2), frame_id='map')))
+            pose=conv.pose_stamped((0.5, -0.2), frame_id='base_link')))
+    # map_frame '' (a robot whose map frame is a localisation's): map is refused.
+    actions.node.goal_frames = conv.goal_frames('odom', '')
+    with pytest.raises(conv.MessageError, match="frame 'map'.*send it in 'odom'$"):
+        actions._goals_of(ifc.NAVIGATE_TO_POSE, goal)
 
 
 def test_result_codes_are_navs_and_waypoints_carry_their_own(actions):
@@ -179,7 +188,8 @@ def test_a_status_said_before_its_goal_was_bound_is_said_again_with_the_goals_id
         actions.status_released(1, 'step 1', {'mission': '8', 'goal_id': '', 'step': '1'})
 
     actions.node = SimpleNamespace(
-        frame_id='odom', map=None, get_clock=lambda: _Clock(5.0), stepper=stepper, feed=feed,
+        frame_id='odom', goal_frames=('odom',), map=None, get_clock=lambda: _Clock(5.0),
+        stepper=stepper, feed=feed,
         sim_check=SimpleNamespace(poll=lambda: None),
         say=lambda level, message, values: said.append((level, message, values)))
     actions.bindings, actions._unbound, actions._said_unbound = {}, {}, {}

@@ -153,6 +153,13 @@ def test_goal_round_trip_and_frame(x, y):
     assert np.array_equal(conv.goal_from_pose_stamped(conv.pose_stamped((x, y))), [x, y])
     with pytest.raises(conv.MessageError, match="frame 'map'"):
         conv.goal_from_pose_stamped(conv.pose_stamped((x, y), frame_id='map'))
+    # The map frame taken as odom: accepted there, and named in the refusal of others.
+    frames = conv.goal_frames('odom', 'map')
+    assert np.array_equal(conv.goal_from_pose_stamped(
+        conv.pose_stamped((x, y), frame_id='map'), frames), [x, y])
+    with pytest.raises(conv.MessageError, match="send it in 'odom' \\(or 'map', taken as"):
+        conv.goal_from_pose_stamped(conv.pose_stamped((x, y), frame_id='world'), frames)
+    assert conv.goal_frames('odom', '') == conv.goal_frames('odom', 'odom') == ('odom',)
 
 
 def test_goal_with_nan_is_rejected():
@@ -213,6 +220,7 @@ def test_goals_from_a_path_in_order_and_bad_paths_refused():
     other = conv.path_to_msg([[1.0, 0.0]], frame_id='map')
     with pytest.raises(conv.MessageError, match="pose 0 is in frame 'map'"):
         conv.goals_from_path(other)
+    assert conv.goals_from_path(other, conv.goal_frames('odom', 'map')) == [(1.0, 0.0)]
     bad = conv.path_to_msg([[1.0, 0.0], [float('nan'), 1.0]])
     with pytest.raises(conv.MessageError, match='pose 1'):
         conv.goals_from_path(bad)

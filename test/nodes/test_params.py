@@ -29,7 +29,7 @@ def test_sim_bridge_start_up_parameters_are_read_only():
     read_only = {spec.name for spec in PARAMETERS if spec.read_only}
     assert read_only == {'robot', 'sim.dt', 'sim.gait_duration', 'sim.solver_iterations',
                          'archive', 'sim.gui', 'seed', 'right_on_fall', 'righting_time',
-                         'interface'}
+                         'interface', 'map_frame'}
 
 
 @given(anything, st.one_of(st.none(), st.floats(-10, 10)),

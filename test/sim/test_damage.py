@@ -64,6 +64,18 @@ def test_a_bad_friction_or_payload_is_refused_with_the_reason(text, reason):
         parse_damage(text)
 
 
+@pytest.mark.parametrize('text, form', [
+    ('block:front_left:knee:0.3', r'block:<leg>\.<joint>\[=<angle>\]'),
+    ('weaken:front_left:0.5', r'weaken:<leg>\.<joint>\[=<share>\]'),
+    ('remove:front_left:0.5', 'remove:<leg>'), ('shorten:left:0.5', r'shorten:<leg>\[:<factor>\]'),
+])
+def test_a_leg_not_found_says_the_form_of_its_item(text, form):
+    """A separator mistaken (``:`` for ``.`` or ``=``) leaves no leg: the error says the
+    item's form beside the valid legs."""
+    with pytest.raises(DamageSpecError, match=f'expected {form}.*valid legs: front_left'):
+        parse_damage(text)
+
+
 def test_order_does_not_matter():
     a = parse_damage('remove:rear_right,remove:front_left,block:middle_left.hip_yaw=0.2')
     b = parse_damage('block:middle_left.hip_yaw=0.2,remove:front_left,remove:rear_right')
