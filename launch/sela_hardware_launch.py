@@ -15,7 +15,8 @@ root), map_frame ('' = goals only in the odometry's frame; map when the odometry
 map's, as motion capture's). Every node runs on the wall clock (no simulator publishes
 /clock); the planner and the adapter take the robot's pose from the same odometry
 (``hexapod/odom`` remapped to it); the adapter checks no simulator's settings against the
-archive, and the damage detector watches the planner, the adapter and the gait executor.
+archive, and the damage detector watches the planner, the adapter and the gait executor. A
+node that refuses its configuration (a bad parameter: its error says which) ends the launch.
 """
 import os
 
@@ -24,6 +25,8 @@ from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, GroupAction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node, PushRosNamespace
+
+from sela_ros.tools.launch_actions import end_on_refused_configuration
 
 #: On a robot, time is the wall clock's: no node waits for a /clock.
 WALL_CLOCK = {'use_sim_time': False}
@@ -85,4 +88,4 @@ def generate_launch_description():
              remappings=odometry),
     ]
     stack = GroupAction([PushRosNamespace(LaunchConfiguration('namespace'))] + nodes)
-    return LaunchDescription(arguments + [stack])
+    return LaunchDescription(arguments + [end_on_refused_configuration(), stack])

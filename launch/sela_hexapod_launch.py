@@ -27,7 +27,9 @@ absent); robot_state_publisher gets the robot's intact model (the hexapod's is
 share/sela_ros/urdf/hexapod.urdf) for the legs'
 transforms, and its own copy of the description is moved aside so that it does not replace
 the simulator's. Where robot_state_publisher or rviz2 is not installed, a line says so and
-the rest of the stack starts.
+the rest of the stack starts. A node that refuses its configuration (a bad parameter: its
+error says which) ends the launch; a damage the robot cannot have is refused before any node
+starts.
 """
 import os
 
@@ -41,6 +43,8 @@ from launch.actions import DeclareLaunchArgument, GroupAction, LogInfo, OpaqueFu
 from launch.conditions import IfCondition
 from launch.substitutions import EqualsSubstitution, LaunchConfiguration
 from launch_ros.actions import Node, PushRosNamespace
+
+from sela_ros.tools.launch_actions import end_on_refused_configuration
 
 # Each robot has its own simulator, so its own clock: /clock -> <namespace>/clock for every
 # node of the stack (the same /clock in the root namespace).
@@ -87,7 +91,7 @@ def generate_launch_description():
     ]
     stack = GroupAction([PushRosNamespace(LaunchConfiguration('namespace')),
                          OpaqueFunction(function=robot_nodes, args=[share])])
-    return LaunchDescription(arguments + [stack])
+    return LaunchDescription(arguments + [end_on_refused_configuration(), stack])
 
 
 def robot_nodes(context, share):
@@ -103,6 +107,7 @@ def robot_nodes(context, share):
         raise ValueError(f'the {robot.name} has no shipped map: build one (docs/robots.md) '
                          'and give it, archive:=PATH')
     damage = LaunchConfiguration('damage').perform(context) or robot.default_damage
+    robot.parse_damage(damage)  # a damage the robot cannot have: said before any node starts
     params = LaunchConfiguration('params_file')
     hardware = IfCondition(EqualsSubstitution(LaunchConfiguration('interface'), 'trajectory'))
     rviz = IfCondition(LaunchConfiguration('rviz'))

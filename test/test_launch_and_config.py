@@ -46,8 +46,9 @@ def _load_launch(monkeypatch, filename, installed=('robot_state_publisher', 'rvi
 
     monkeypatch.setattr(index, 'get_package_prefix', prefix)
     fakes = {'launch': ['LaunchDescription'],
-             'launch.actions': ['DeclareLaunchArgument', 'GroupAction', 'LogInfo',
-                                'OpaqueFunction'],
+             'launch.actions': ['DeclareLaunchArgument', 'EmitEvent', 'GroupAction', 'LogInfo',
+                                'OpaqueFunction', 'RegisterEventHandler'],
+             'launch.event_handlers': ['OnProcessExit'], 'launch.events': ['Shutdown'],
              'launch.conditions': ['IfCondition'],
              'launch.substitutions': ['EqualsSubstitution', 'LaunchConfiguration'],
              'launch_ros': [], 'launch_ros.actions': ['Node', 'PushRosNamespace']}
@@ -197,10 +198,10 @@ def test_robot_a1_runs_the_stack_on_the_a1_its_map_model_and_fall_test(monkeypat
     assert urdf == a1.urdf() and 'a1_description' in urdf
     # An archive and a damage given are used as given.
     launch = _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='a1',
-                          archive='/maps/mine.npz', damage='remove:front_left')
+                          archive='/maps/mine.npz', damage='shorten:front_left:0.5')
     nodes = {n.kwargs['executable']: n for n in _nodes(launch)}
     sim = nodes['sim_bridge'].kwargs['parameters'][1]
-    assert (sim['archive'], sim['damage']) == ('/maps/mine.npz', 'remove:front_left')
+    assert (sim['archive'], sim['damage']) == ('/maps/mine.npz', 'shorten:front_left:0.5')
     with pytest.raises(ValueError, match='unknown robot'):
         _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='walrus')
 
@@ -219,6 +220,36 @@ def test_a_robot_named_by_its_import_path_reaches_the_nodes_as_named(monkeypatch
                           robot='sim_bridge.robots.toy:TOY', archive='/maps/toy.npz')
     nodes = {n.kwargs['executable']: n for n in _nodes(launch)}
     assert nodes['sela_adapter'].kwargs['parameters'][1]['archive'] == '/maps/toy.npz'
+
+
+def test_a_damage_the_robot_cannot_have_is_refused_before_any_node_starts(monkeypatch):
+    from sim_bridge.damage import DamageSpecError
+
+    with pytest.raises(DamageSpecError, match="unknown leg 'front_lft'.*valid legs"):
+        _load_launch(monkeypatch, 'sela_hexapod_launch.py', damage='remove:front_lft')
+    with pytest.raises(DamageSpecError, match='calf'):  # the A1's names, not the hexapod's
+        _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='a1',
+                     damage='block:front_left.knee')
+
+
+@pytest.mark.parametrize('filename', ['sela_hexapod_launch.py', 'sela_hardware_launch.py'])
+def test_a_node_refusing_its_configuration_ends_the_launch_and_a_crash_does_not(
+        monkeypatch, filename):
+    from types import SimpleNamespace
+
+    from sela_ros.nodes.node_main import EXIT_BAD_CONFIGURATION
+
+    launch = _load_launch(monkeypatch, filename)
+    (handler,) = [a for a in launch.args[0] if type(a).__name__ == 'RegisterEventHandler']
+    (on_exit,) = handler.args
+    assert on_exit.kwargs.get('target_action') is None  # every process of the launch
+    react = on_exit.kwargs['on_exit']
+    said, shutdown = react(SimpleNamespace(process_name='planner-2',
+                                           returncode=EXIT_BAD_CONFIGURATION), None)
+    assert 'planner-2 refused its configuration' in said.kwargs['msg']
+    assert shutdown.kwargs['event'].kwargs['reason'] == said.kwargs['msg']
+    for code in (0, 1, -9, -15):  # ended, crashed, killed: the others go on
+        assert react(SimpleNamespace(process_name='planner-2', returncode=code), None) is None
 
 
 def test_the_hardware_launch_runs_the_stack_on_a_robots_own_topics(monkeypatch):
