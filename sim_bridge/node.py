@@ -120,7 +120,9 @@ PARAMETERS = (
          else f'must be one of {", ".join(INTERFACES)}, got {v!r}'),
     Spec('map_frame', 'map', "the odometry frame's parent, the identity (the simulator's "
          "odometry does not drift), on /tf_static: RViz with this fixed frame draws the robot "
-         "('' = none)", read_only=True),
+         "('' = none)", read_only=True,
+         rule=lambda v: f'must be another frame than odom and base_link (its children), got {v!r}'
+         if v in ('odom', 'base_link') else None),
 )
 
 

@@ -32,6 +32,13 @@ def test_sim_bridge_start_up_parameters_are_read_only():
                          'interface', 'map_frame'}
 
 
+def test_the_simulators_map_frame_is_none_of_the_frames_it_parents():
+    spec = next(s for s in PARAMETERS if s.name == 'map_frame')
+    assert check(spec, 'map') is None and check(spec, '') is None and check(spec, 'world') is None
+    for child in ('odom', 'base_link'):  # a transform to itself, or a loop in the tree
+        assert 'another frame than odom and base_link' in check(spec, child)
+
+
 @given(anything, st.one_of(st.none(), st.floats(-10, 10)),
        st.one_of(st.none(), st.floats(-10, 10)))
 @example(2 ** 53 + 1, None, None)  # an integer no double holds: the nearest one is taken
