@@ -9,8 +9,17 @@ writer of their own on ``planner/alive``; neither keeps the planner's writer ali
 death of any writer is an event that is reported. The ``<node>: heartbeat`` statuses on
 ``diagnostics`` stay, for monitors (a node's lasting problem is said in them); nothing
 decides on them.
+
+A node also watches for a namesake: another node of its name and namespace in the domain (a
+second stack started without ``namespace:=``), whose topics would mix with its own. It is
+one only while the graph holds two nodes of the name *and* a writer on the node's
+``<node>/alive`` from another process is alive (the liveliness events of a subscription
+count the writers of other participants: Fast DDS does not report the process's own): a
+killed node's entry stays in the graph for the middleware's lease, but its writer loses its
+liveliness within ``interface.LIVELINESS_LEASE``.
 """
 import functools
+import os
 import time
 import weakref
 
@@ -32,6 +41,17 @@ UNASSERTED = ifc.LIVELINESS_LEASE + 2.0
 # Each node's liveliness writer, held for the node's life.
 _WRITERS = weakref.WeakKeyDictionary()
 
+def namesake_problem(full_name, in_graph, alive_writers, domain_id):
+    """What a node says while it has a namesake (see the module), or None: ``in_graph``
+    nodes of its full name in the graph, ``alive_writers`` of other processes alive on its
+    ``<node>/alive``."""
+    if in_graph < 2 or alive_writers < 1:
+        return None
+    return (f'{in_graph - 1} other node(s) named {full_name} in this domain (ROS_DOMAIN_ID '
+            f'{domain_id}): their topics mix with this one\'s; start a second stack with '
+            'namespace:=/<robot> or another ROS_DOMAIN_ID')
+
+
 def add_heartbeat(node, period=1.0, problem=None):
     """Hold the node's liveliness writer (``<node name>/alive``) and publish ``<node name>:
     heartbeat`` on diagnostics every ``period`` wall-clock seconds: level OK ('alive'), or
@@ -42,12 +62,14 @@ def add_heartbeat(node, period=1.0, problem=None):
     name = node.get_name() + SUFFIX
     started = time.monotonic()
     alive = ifc.ALIVE.get(node.get_name())
+    namesake = _NamesakeWatch(node, alive) if alive is not None else None
     if alive is not None:
         # Kept as long as the node lives (DDS asserts it while the writer exists).
         _WRITERS[node] = node.create_publisher(alive.type, alive.own_name, alive.qos)
 
     def beat():
         message = problem() if problem is not None else None
+        message = (namesake.check() if namesake is not None else None) or message
         pub.publish(diagnostic_array(diagnostic_status(
             DiagnosticStatus.ERROR if message else DiagnosticStatus.OK, name,
             message or 'alive', {'uptime_s': f'{time.monotonic() - started:.1f}'}),
@@ -55,6 +77,35 @@ def add_heartbeat(node, period=1.0, problem=None):
 
     beat()
     return node.create_timer(period, beat, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
+class _NamesakeWatch:
+    """Whether ``node`` has a namesake (see the module): said once on the log as it appears
+    and as it goes; :meth:`check` is the problem its heartbeat carries meanwhile."""
+
+    def __init__(self, node, alive):
+        self.node, self.alive_writers, self.said = node, 0, None
+        node.create_subscription(
+            alive.type, alive.own_name, lambda _msg: None, alive.qos,
+            event_callbacks=SubscriptionEventCallbacks(liveliness=self._changed))
+
+    def _changed(self, event):
+        self.alive_writers = event.alive_count
+
+    def check(self):
+        node = self.node
+        full_name = node.get_fully_qualified_name()
+        in_graph = sum(1 for n, ns in node.get_node_names_and_namespaces()
+                       if (n, ns) == (node.get_name(), node.get_namespace()))
+        problem = namesake_problem(full_name, in_graph, self.alive_writers,
+                                   os.environ.get('ROS_DOMAIN_ID', '0'))
+        if problem != self.said:
+            if problem:
+                node.get_logger().error(problem)
+            elif self.said:
+                node.get_logger().info(f'no other node named {full_name} any more')
+            self.said = problem
+        return problem
 
 
 class LivenessWatch:

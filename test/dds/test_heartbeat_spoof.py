@@ -190,3 +190,34 @@ def test_a_killed_planner_ends_the_mission_within_ten_seconds_of_being_reported(
     finally:
         client.close()
         nodes.stop()
+
+
+@pytest.mark.dds
+def test_a_second_node_of_the_same_name_in_the_domain_is_said_by_both_until_it_goes():
+    """A second stack started without a namespace: each planner's heartbeat says that
+    another node of its name is in the domain, and says nothing once it is gone."""
+    first = NodeProcesses(names=('planner',))
+    client = Client('namesake_watcher')
+    statuses, second = [], None
+    try:
+        ifc.subscription(client.node, ifc.DIAGNOSTICS, lambda m: statuses.extend(m.status))
+        client.spin_until(lambda: any(s.name == f'planner{ifc.HEARTBEAT_SUFFIX}'
+                                      and s.message == 'alive' for s in statuses), 120,
+                          "the first planner's heartbeat")
+        second = NodeProcesses(names=('planner',))
+        client.spin_until(lambda: len(_errors(statuses, 'other node(s) named /planner'))
+                          >= 4, 120, 'the namesakes said by the planners')
+        said = _errors(statuses, 'other node(s) named /planner')[0]
+        assert 'ROS_DOMAIN_ID' in said and 'namespace:=' in said, said
+        second.stop()
+        gone = len(statuses)
+        client.spin_until(lambda: sum(s.name == f'planner{ifc.HEARTBEAT_SUFFIX}'
+                                      and s.message == 'alive' for s in statuses[gone:]) >= 3,
+                          120, "the first planner's heartbeat alive again")
+        assert 'no other node named /planner any more' in first.logs()['planner.log']
+        assert all(first.alive().values()), first.logs()
+    finally:
+        client.close()
+        first.stop()
+        if second is not None:
+            second.stop()

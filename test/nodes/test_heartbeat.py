@@ -85,3 +85,15 @@ def test_a_writer_matched_but_never_asserted_makes_its_node_lost_until_it_assert
     assert fresh.changed('planner', 1, 1, now=8.0, writers={'p1'}, not_alive_count=0) == 'alive'
     assert fresh.check(now=8.0) == ([], ['planner'])
     assert fresh.matched('planner', 1, now=20.0) is None
+
+
+def test_a_namesake_is_one_only_while_the_graph_and_a_live_writer_both_say_so():
+    from sela_ros.nodes.heartbeat import namesake_problem
+
+    said = namesake_problem('/planner', 2, 1, '7')
+    assert '1 other node(s) named /planner' in said and 'ROS_DOMAIN_ID 7' in said
+    assert 'namespace:=' in said
+    # A killed namesake's entry lingers in the graph: its writer is no longer alive.
+    assert namesake_problem('/planner', 2, 0, '7') is None
+    # A writer of someone else's on planner/alive, no second planner: not a namesake.
+    assert namesake_problem('/planner', 1, 1, '7') is None
