@@ -123,7 +123,7 @@ def make_parser() -> argparse.ArgumentParser:
                         help='descriptor bounds in metres (default -0.6 0.6 -0.6 0.6)')
     parser.add_argument('--initial', type=_positive_int, default=None,
                         help='random gaits of the first batch, per emitter (default 5 '
-                             'batches)')
+                             'batches, or the whole budget when it is smaller)')
     parser.add_argument('--dt', type=_positive_float, default=None,
                         help='physics time step in s (default 1/240 for 2d, 1/120 for 8d)')
     parser.add_argument('--solver-iterations', type=_positive_int, default=None,
@@ -152,6 +152,13 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
     if args.regrid is not None and (not _is_cvt(args) or not args.resume):
         parser.error('--regrid takes an 8d run to resume: add --descriptor 8d --resume')
     args.resume = args.resume or args.export
+    # The random first batch counts in the budget: never more than it.
+    budget = max(1, args.evaluations // args.emitters)
+    if args.initial is not None and args.initial > budget:
+        parser.error(f'--initial {args.initial} random gaits per emitter exceed the budget '
+                     f'(--evaluations {args.evaluations} over {args.emitters} emitter(s): '
+                     f'{budget} each)')
+    args.initial = args.initial or min(5 * args.batch_size, budget)
     if args.out.suffix != '.npz':
         parser.error(f'--out must end in .npz, got {args.out}')
     # The map, its checkpoint and its journal are written there: said now, not after the
@@ -283,7 +290,7 @@ def _new_cvt_run(args, evaluate, executor, checkpoint: Path):
     print(f'{args.cells} CVT centroids in {time.perf_counter() - start:.0f} s', flush=True)
     return CVTMapElites(centroids, bounds, evaluate, executor,
                         batch_size=args.batch_size, emitters=args.emitters,
-                        n_initial=args.initial or 5 * args.batch_size,
+                        n_initial=args.initial,
                         seed=args.seed, checkpoint_path=checkpoint,
                         checkpoint_every=args.checkpoint_every)
 
@@ -376,7 +383,7 @@ def main(argv: list[str] | None = None) -> int:
             run = default_run(evaluate, dims=args.grid,
                               bounds=np.reshape(args.bounds, (2, 2)),
                               batch_size=args.batch_size,
-                              n_initial=args.initial or 5 * args.batch_size, seed=args.seed,
+                              n_initial=args.initial, seed=args.seed,
                               executor=executor, checkpoint_path=checkpoint,
                               checkpoint_every=args.checkpoint_every,
                               emitters=args.emitters, solution_dim=evaluate.n_params)

@@ -193,6 +193,22 @@ def test_cli_export_reads_a_checkpoint_without_touching_it(tmp_path):
     np.testing.assert_array_equal(a.params, b.params)
 
 
+def test_a_budget_smaller_than_the_random_first_batch_is_the_whole_build(tmp_path, capsys):
+    """``--evaluations 120`` evaluates 120 gaits, not the default first batch of five
+    batches; a first batch asked larger than the budget is refused."""
+    from sela_ros.tools.build_archive import main
+
+    out = tmp_path / 'small.npz'
+    common = ['--synthetic', '--descriptor', '8d', '--cells', '30', '--batch-size', '50',
+              '--workers', '1', '--no-progress', '--out', str(out)]
+    assert main([*common, '--evaluations', '120']) == 0
+    assert load_archive(out).metadata['n_evaluations'] == 120
+    with pytest.raises(SystemExit) as exit_:
+        main([*common, '--evaluations', '120', '--initial', '200'])
+    assert exit_.value.code == 2
+    assert '--initial 200 random gaits per emitter exceed the budget' in capsys.readouterr().err
+
+
 def test_regrid_carries_every_elite_into_a_finer_cvt_and_goes_on(tmp_path):
     run = _run(n=600, checkpoint_path=tmp_path / 'ck.pkl', checkpoint_every=2)
     old = _elites(run)
