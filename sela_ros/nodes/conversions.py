@@ -99,6 +99,18 @@ def quaternion_to_yaw(q):
     return geometry.quaternion_to_yaw(q.x, q.y, q.z, q.w)
 
 
+def _unit_quaternion(q, name):
+    """``(x, y, z, w)`` of a quaternion message, of norm 1 (one that is not is scaled to
+    it); raises MessageError for a non-finite or zero one."""
+    x, y, z, w = _finite_array([q.x, q.y, q.z, q.w], name, 4, labels=('x', 'y', 'z', 'w'))
+    norm2 = x * x + y * y + z * z + w * w
+    if norm2 < 1e-12:
+        raise MessageError(f'{name}: the quaternion is zero (no orientation given)')
+    if abs(norm2 - 1.0) > 1e-9:
+        x, y, z, w = (v / math.sqrt(norm2) for v in (x, y, z, w))
+    return x, y, z, w
+
+
 def time_to_msg(seconds):
     seconds = float(seconds)
     sec = int(math.floor(seconds))
@@ -315,7 +327,9 @@ ODOMETRY_LIMIT = 1e6
 
 def pose_from_odometry(msg):
     p = msg.pose.pose
-    pose = np.array([p.position.x, p.position.y, quaternion_to_yaw(p.orientation)])
+    yaw = geometry.quaternion_to_yaw(*_unit_quaternion(p.orientation,
+                                                        'odometry pose.pose.orientation'))
+    pose = np.array([p.position.x, p.position.y, yaw])
     pose = _finite_array(pose, 'odometry pose', 3,
                          labels=('pose.pose.position.x', 'pose.pose.position.y',
                                  'the yaw of pose.pose.orientation'))

@@ -142,6 +142,24 @@ def test_odometry_round_trip(x, y, yaw):
     assert abs(math.remainder(pose[2] - yaw, 2 * math.pi)) < 1e-9
 
 
+def test_odometry_with_a_zero_or_nan_quaternion_is_refused_and_another_is_normalised():
+    msg = conv.odometry_msg([1.0, 2.0, 0.0])
+    o = msg.pose.pose.orientation
+    o.x = o.y = o.z = o.w = 0.0  # no orientation given
+    with pytest.raises(conv.MessageError, match='orientation: the quaternion is zero'):
+        conv.pose_from_odometry(msg)
+    o.w = math.nan
+    with pytest.raises(conv.MessageError, match='orientation.*w is nan'):
+        conv.pose_from_odometry(msg)
+    # A rotation of 90 deg about z, given at twice its norm: the same heading.
+    o.z, o.w = 2.0, 2.0
+    assert conv.pose_from_odometry(msg)[2] == pytest.approx(math.pi / 2)
+    # A unit quaternion is read as it is, to the bit.
+    unit = conv.odometry_msg([1.0, 2.0, 0.7])
+    q = unit.pose.pose.orientation
+    assert conv.pose_from_odometry(unit)[2] == conv.quaternion_to_yaw(q)
+
+
 def test_odometry_beyond_any_map_is_refused_with_the_reason():
     with pytest.raises(conv.MessageError, match=r'odometry pose: y 1e\+300 m is beyond'):
         conv.pose_from_odometry(conv.odometry_msg([0.0, 1e300, 0.0]))
