@@ -4,6 +4,13 @@ each foreseen damage (the oracle's tables, cached as the experiments cache them)
 beside the archive as ``<archive>_priors.npz`` (docs/archive.md, "Damage priors").
 
     .venv/bin/python scripts/build_priors.py 8d --damages single-legs --workers 2
+    .venv/bin/python scripts/build_priors.py a1 --out a1_priors.npz \
+        --damages 'shorten:front_left:0.5;block:rear_right.calf' --chained-repeats 0
+
+The damages are in the names of the map's robot (the one its metadata names, or ``--robot``
+for a robot of your own module, as ``sela-build-archive`` took it); ``single-legs`` and
+``two-legs`` are the hexapod's. The adapter takes ``<archive>_priors.npz`` beside its map
+(``priors.tables: auto``) or the file ``priors.tables`` names.
 
 A damage whose table is not cached costs about 0.1 s of one core per gait (14-21 minutes of
 one core per damage for the 8-D map); the tables already cached cost nothing.
@@ -34,7 +41,9 @@ from sela_ros.core.storage import (
     resolve_archive_path,  # noqa: E402
 )
 from sela_ros.experiments.campaign import damage_list  # noqa: E402
+from sim_bridge.damage import DamageSpecError  # noqa: E402
 from sim_bridge.experiment_env import chained_runs, oracle_table  # noqa: E402
+from sim_bridge.robots import get_robot, robot_of  # noqa: E402
 
 #: Which gaits are run chained (module docstring).
 CHAINED_MIN_DISTANCE = 0.3
@@ -57,8 +66,13 @@ def chained_choice(archive, gr, fallen, repeats, rng):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('archive', help="a map: '8d', '2d' or a path")
-    parser.add_argument('--damages', type=damage_list, default=damage_list('single-legs'),
-                        help="';'-separated damage specs or groups (default single-legs)")
+    parser.add_argument('--damages', type=damage_list, default=None,
+                        help="';'-separated damage specs or groups, in the names of the map's "
+                        "robot (default: the hexapod's single-legs; another robot's are "
+                        'to be given)')
+    parser.add_argument('--robot', default=None,
+                        help="the map's robot as package.module:DESCRIPTION, for a robot of "
+                        "your own (default: the one the map's metadata names)")
     parser.add_argument('--workers', type=int, default=1)
     parser.add_argument('--chained-repeats', type=int, default=4,
                         help='predecessors of each gait run chained (0: none)')
@@ -70,6 +84,25 @@ def main(argv=None):
     path = resolve_archive_path(args.archive)
     archive = load_archive(path)
     settings = archive.simulator_settings
+    named = robot_of(archive.metadata)
+    try:
+        robot = get_robot(args.robot if args.robot is not None else named)
+    except ValueError as exc:
+        parser.error(f'{path} is a map of the {named}: {exc}' if args.robot is None
+                     else f'--robot: {exc}')
+    if robot.name != named:
+        parser.error(f'{path} is a map of the {named}, not of the {robot.name}')
+    if args.damages is None:
+        if robot.name != get_robot(None).name:
+            parser.error(f'--damages: give the damages of the {robot.name}, in its names '
+                         f'(legs {", ".join(robot.vocabulary.legs)}; kinds '
+                         f'{", ".join(robot.vocabulary.kinds)})')
+        args.damages = damage_list('single-legs')
+    try:  # every damage in the robot's names, before the first table is built
+        args.damages = [robot.parse_damage(d).canonical() for d in args.damages]
+    except DamageSpecError as exc:
+        parser.error(f'--damages: {exc}')
+    robot_arg = args.robot if args.robot is not None else named
     if args.chained_repeats and archive.stability is None:
         parser.error(f'{path} has no support feature (a 2-D map): use --chained-repeats 0')
     grs, falls, runs, chained_falls = [], [], [], []
@@ -78,7 +111,8 @@ def main(argv=None):
               flush=True)
         gr, fallen = oracle_table(archive.params, damage, workers=args.workers,
                                   dt=settings['dt'], gait_duration=settings['gait_duration'],
-                                  solver_iterations=settings['solver_iterations'])
+                                  solver_iterations=settings['solver_iterations'],
+                                  robot=robot_arg)
         grs.append(gr)
         falls.append(fallen)
         print(f'{damage}: {int(fallen.sum())} of {len(fallen)} gaits fall', flush=True)
@@ -90,7 +124,7 @@ def main(argv=None):
               f'{args.chained_repeats} others (or reading the cache)', flush=True)
         n, f = chained_runs(archive.params, damage, gaits, before, workers=args.workers,
                             dt=settings['dt'], gait_duration=settings['gait_duration'],
-                            solver_iterations=settings['solver_iterations'])
+                            solver_iterations=settings['solver_iterations'], robot=robot_arg)
         runs.append(np.zeros(len(archive), int))
         chained_falls.append(np.zeros(len(archive), int))
         runs[-1][gaits], chained_falls[-1][gaits] = n, f

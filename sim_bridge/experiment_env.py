@@ -234,21 +234,23 @@ def oracle_table(params, damage, workers=1, cache_dir=None, dt=1.0 / 240.0,
 
 
 def chained_runs(params, damage, gaits, predecessors, workers=1, dt=1.0 / 240.0,
-                 gait_duration=3.0, solver_iterations=50, cache_dir=None):
+                 gait_duration=3.0, solver_iterations=50, cache_dir=None, robot=None):
     """Each of ``gaits`` run right after each of its ``predecessors`` (``(len(gaits), R)``
     archive indices), every pair from a standing start: ``(runs, falls)`` per gait, the
     pairs whose predecessor fell left out. What a table from standing starts cannot say:
     whether a gait tips the robot over when it starts where another gait left the legs
-    (``scripts/build_priors.py``; the fall model uses it, ``FallRisk.risk``)."""
+    (``scripts/build_priors.py``; the fall model uses it, ``FallRisk.risk``). ``robot``: as
+    :func:`get_robot` takes it (None: the hexapod)."""
     gaits = np.asarray(gaits, dtype=int).reshape(-1)
     if not gaits.size:  # a damage whose gaits the fall model does not fear (a middle leg)
         return np.zeros(0, int), np.zeros(0, int)
     predecessors = np.asarray(predecessors, dtype=int).reshape(len(gaits), -1)
-    spec = get_robot(None).parse_damage(damage).canonical()
+    description = get_robot(robot)
+    spec = description.parse_damage(damage).canonical()
     # Cached beside the oracle tables, keyed by everything the runs depend on.
     key = hashlib.sha256(b'|'.join([oracle_cache_path(params, damage, cache_dir, dt,
-                                                      gait_duration, solver_iterations
-                                                      ).stem.encode(),
+                                                      gait_duration, solver_iterations,
+                                                      description).stem.encode(),
                                     gaits.tobytes(), predecessors.tobytes()])).hexdigest()
     path = Path(cache_dir or default_cache_dir()) / f'chained_{key[:24]}.npz'
     if path.is_file():
@@ -261,7 +263,8 @@ def chained_runs(params, damage, gaits, predecessors, workers=1, dt=1.0 / 240.0,
             pass
     chunks = np.array_split(np.arange(len(gaits)), max(1, min(len(gaits), 4 * workers)))
     jobs = [(np.asarray(params, float)[gaits[c]], np.asarray(params, float)[predecessors[c]],
-             spec, dt, gait_duration, solver_iterations) for c in chunks if len(c)]
+             spec, dt, gait_duration, solver_iterations, robot_spec(description))
+            for c in chunks if len(c)]
     if workers <= 1 or len(jobs) <= 1:
         rows = [_chained_chunk(j) for j in jobs]
     else:
@@ -273,10 +276,10 @@ def chained_runs(params, damage, gaits, predecessors, workers=1, dt=1.0 / 240.0,
 
 
 def _chained_chunk(job):
-    gaits, predecessors, damage, dt, gait_duration, solver_iterations = job
+    gaits, predecessors, damage, dt, gait_duration, solver_iterations, robot = job
     out = np.zeros((len(gaits), 2), int)
     with Simulator(dt=dt, gait_duration=gait_duration, damage=damage,
-                   solver_iterations=solver_iterations) as robot:
+                   solver_iterations=solver_iterations, robot=get_robot(robot)) as robot:
         for i, (gait, before) in enumerate(zip(gaits, predecessors)):
             for first in before:
                 robot.reset()
