@@ -95,6 +95,16 @@ def goal_count(request):
     return max(0, poses - int(request.goal_index)) + poses * int(request.number_of_loops)
 
 
+def unused_request(action, request):
+    """What a goal asks that this stack does not do (nav2's ``behavior_tree``), in words for
+    a warning; None: nothing. The goal goes on all the same."""
+    tree = getattr(request, 'behavior_tree', '')
+    if not tree:
+        return None
+    return (f'{action.name}: behavior_tree {tree!r} is not used here (no behaviour trees: '
+            'SELA chooses every gait); the goal goes on')
+
+
 class MissionActions:
     """The action servers of ``node`` (a :class:`~sela_ros.nodes.adapter_node.
     SelaAdapter`), and which goal each mission belongs to."""
@@ -189,6 +199,9 @@ class MissionActions:
             message = f'{action.name} goal refused: {exc}'
             self.node.report(io.Level.ERROR, message)
             return self._finish(handle, action, False, ifc.UNKNOWN_ERROR, message, [])
+        unused = unused_request(action, handle.request)
+        if unused is not None:
+            self.node.report(io.Level.WARN, unused)
         problem = self._problem(goals)
         if problem is not None:
             index, code, why = problem

@@ -123,7 +123,8 @@ def _mission_of(user, goal_handle):
 
 def test_navigate_to_pose_succeeds_with_feedback_every_gait(stack):
     nodes, user = stack
-    goal = NavigateToPose.Goal(pose=user.goal_ahead(0.5, 0.0))
+    # A behaviour tree asked for (nav2's field) is said to be unused; the goal goes on.
+    goal = NavigateToPose.Goal(pose=user.goal_ahead(0.5, 0.0), behavior_tree='custom_bt.xml')
     feedback = []
     gaits_before = len(user.gaits)
     sent = user.stamp
@@ -159,6 +160,8 @@ def test_navigate_to_pose_succeeds_with_feedback_every_gait(stack):
                             _seconds(b.current_pose.header.stamp)
                             - _seconds(a.current_pose.header.stamp), abs_tol=1e-6)
     assert all(f.current_pose.header.frame_id == 'odom' for f in feedback)
+    log = (nodes.logdir / 'sela_adapter.log').read_text()
+    assert "behavior_tree 'custom_bt.xml' is not used here" in log
     print(f'navigate_to_pose: {gaits} gait(s), {len(feedback)} feedback(s), ended '
           f'{math.dist(end, target):.3f} m from the goal')
 

@@ -8,7 +8,7 @@ from nav2_msgs.action import FollowWaypoints, NavigateToPose
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
-from sela_ros.nodes.adapter_actions import MissionActions, goal_count
+from sela_ros.nodes.adapter_actions import MissionActions, goal_count, unused_request
 
 
 @pytest.fixture
@@ -63,6 +63,16 @@ def test_navigate_to_pose_takes_the_pose_in_the_odom_frame_or_the_map_frame(acti
     actions.node.goal_frames = conv.goal_frames('odom', '')
     with pytest.raises(conv.MessageError, match="frame 'map'.*send it in 'odom'$"):
         actions._goals_of(ifc.NAVIGATE_TO_POSE, goal)
+
+
+def test_a_behavior_tree_asked_for_is_said_to_be_unused_and_nothing_else_is():
+    pose = conv.pose_stamped((0.5, 0.0))
+    said = unused_request(ifc.NAVIGATE_TO_POSE,
+                          NavigateToPose.Goal(pose=pose, behavior_tree='/bt/custom.xml'))
+    assert "behavior_tree '/bt/custom.xml' is not used here" in said
+    assert 'the goal goes on' in said and said.startswith('navigate_to_pose')
+    assert unused_request(ifc.NAVIGATE_TO_POSE, NavigateToPose.Goal(pose=pose)) is None
+    assert unused_request(ifc.FOLLOW_WAYPOINTS, FollowWaypoints.Goal(poses=[pose])) is None
 
 
 def test_result_codes_are_navs_and_waypoints_carry_their_own(actions):
