@@ -85,8 +85,9 @@ def main(argv=None):
     archive = load_archive(path)
     settings = archive.simulator_settings
     named = robot_of(archive.metadata)
+    robot_arg = args.robot if args.robot is not None else named  # what workers find it by
     try:
-        robot = get_robot(args.robot if args.robot is not None else named)
+        robot = get_robot(robot_arg)
     except ValueError as exc:
         parser.error(f'{path} is a map of the {named}: {exc}' if args.robot is None
                      else f'--robot: {exc}')
@@ -102,7 +103,6 @@ def main(argv=None):
         args.damages = [robot.parse_damage(d).canonical() for d in args.damages]
     except DamageSpecError as exc:
         parser.error(f'--damages: {exc}')
-    robot_arg = args.robot if args.robot is not None else named
     if args.chained_repeats and archive.stability is None:
         parser.error(f'{path} has no support feature (a 2-D map): use --chained-repeats 0')
     grs, falls, runs, chained_falls = [], [], [], []
