@@ -22,7 +22,6 @@ executor keeps answering services, parameters and subscriptions while the robot 
 """
 import os
 import threading
-import time
 from collections import deque
 
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -41,6 +40,7 @@ from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import Spec, declare
 from sim_bridge.damage import DamageSpecError
 from sim_bridge.environment import RIGHTING_TIME, ObservedHexapod
+from sim_bridge.pacing import MIN_REAL_TIME_FACTOR, GaitPace
 from sim_bridge.robots import DEFAULT_ROBOT, ROBOTS, get_robot, robot_of
 from sim_bridge.settings import SIM_DEFAULTS, physics_settings, read_archive_metadata
 from sim_bridge.simulator import Simulator
@@ -104,6 +104,13 @@ PARAMETERS = (
          '/tf) during a gait', low=0.001, high=60.0, unit=' s'),
     Spec('publish_max_rate', 5.0, 'at most this many state messages per wall second during a '
          'gait (none: no cap)', low=0.0, high=1000.0, unit=' Hz', word='none'),
+    Spec('real_time_factor', 0.0, 'each gait (or trajectory) lasts at least its sim time '
+         'divided by this in wall time, from the next gait on: 1 = the robot\'s own pace, '
+         'to watch it or to drive it as a robot; 0 = as fast as the machine allows. A gait '
+         'then takes sim.gait_duration / real_time_factor: keep the adapter\'s '
+         'outcome_timeout above it', low=0.0, high=1000.0,
+         rule=lambda v: None if v == 0 or v >= MIN_REAL_TIME_FACTOR else
+         f'must be 0 (no pacing) or at least {MIN_REAL_TIME_FACTOR}, got {v}'),
     Spec('observation.noise_std', 0.01, 'std of the Gaussian noise on observed positions',
          low=0.0, high=1.0, unit=' m'),
     Spec('seed', 0, 'seed of the observation noise', low=0, high=2**31 - 1, read_only=True),
@@ -187,20 +194,15 @@ class HardwareFace:
                                robot=self.description)
         gait_end = self.env.robot.sim_time + len(targets) * self.env.robot.dt
         end = []
-        min_gap = 0.0 if self.publish_max_rate is None else 1.0 / self.publish_max_rate
-        last = [time.monotonic()]
 
-        def on_step(sim_time, pose, positions, velocities):
+        def on_state(sim_time, pose, positions, velocities):
             if sim_time >= gait_end - 1e-9:  # the end: published once observed
                 end[:] = [sim_time, self.env.robot.base_pose_3d(), positions, velocities]
-                return
-            now = time.monotonic()
-            if now - last[0] >= min_gap:
-                last[0] = now
+            else:
                 self._publish_state(sim_time, pose, positions, velocities)
 
-        result = self.env.execute_targets(targets, callback=on_step,
-                                          callback_period=self.publish_period)
+        pace = self._pace(on_state, end=gait_end)
+        result = self.env.execute_targets(targets, callback=pace, callback_period=pace.period)
         sim_time, (xyz, quaternion), positions, velocities = end
         if result.fallen:
             self._report_fall(None)
@@ -238,6 +240,7 @@ class SimBridge(HardwareFace, Node):
                                    righting_time=values['righting_time'])
         self.publish_period = values['publish_period']
         self.publish_max_rate = _max_rate(values['publish_max_rate'])
+        self.real_time_factor = float(values['real_time_factor'])
         self.right_on_fall = values['right_on_fall']
 
         self._sim_lock = threading.Lock()  # held by whoever touches the simulator
@@ -384,6 +387,8 @@ class SimBridge(HardwareFace, Node):
                 self.publish_period = float(param.value)
             elif param.name == 'publish_max_rate':
                 self.publish_max_rate = _max_rate(param.value)
+            elif param.name == 'real_time_factor':
+                self.real_time_factor = float(param.value)
         return SetParametersResult(successful=True)
 
     # --- worker thread -------------------------------------------------------------------
@@ -431,20 +436,8 @@ class SimBridge(HardwareFace, Node):
                     self._busy = False
 
     def _run_gait(self, behavior_id, params):
-        # Mid-gait state every publish_period of sim time, but at most publish_max_rate times
-        # per wall second: every message wakes each subscriber's executor, and on a small
-        # machine that CPU time is taken from the gait (+15 % per step measured at 0.5 s sim
-        # uncapped, 20x real time). The state at the end of the gait always goes out.
-        min_gap = 0.0 if self.publish_max_rate is None else 1.0 / self.publish_max_rate
-        last = [time.monotonic()]
-
-        def on_step(sim_time, pose, positions, velocities):
-            now = time.monotonic()
-            if now - last[0] >= min_gap:
-                last[0] = now
-                self._publish_state(sim_time, pose, positions, velocities)
-
-        result = self.env.execute(params, callback=on_step, callback_period=self.publish_period)
+        pace = self._pace(self._publish_state)
+        result = self.env.execute(params, callback=pace, callback_period=pace.period)
         outcome = conv.BehaviorOutcome(
             behavior_id=behavior_id, generic_reward=result.observed_generic_reward,
             start_pose=result.observed_start, end_pose=result.observed_end,
@@ -455,6 +448,17 @@ class SimBridge(HardwareFace, Node):
         if result.fallen:
             self._report_fall(behavior_id)
         self._publish_state(self.env.robot.sim_time)
+
+    def _pace(self, on_state, end=None):
+        # Mid-gait state every publish_period of sim time, but at most publish_max_rate times
+        # per wall second: every message wakes each subscriber's executor, and on a small
+        # machine that CPU time is taken from the gait (+15 % per step measured at 0.5 s sim
+        # uncapped, 20x real time). The state at the end of the gait always goes out, after
+        # it. Shutting down ends the pacing (the gait finishes at once).
+        return GaitPace(on_state, self.env.robot.sim_time, self.publish_period,
+                        self.env.robot.dt, max_rate=self.publish_max_rate,
+                        real_time_factor=self.real_time_factor, end=end,
+                        sleep=self._stop.wait)
 
     def _report_fall(self, behavior_id):
         values = {'behavior_id': 'none (a trajectory)' if behavior_id is None else behavior_id,

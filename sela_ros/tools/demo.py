@@ -97,6 +97,10 @@ def build_parser():
                         help=f'observation-noise seed, 0 to {arguments.NODE_SEED_MAX} '
                         '(default: %(default)s)')
     parser.add_argument('--gui', action='store_true', help="show PyBullet's window")
+    parser.add_argument('--real-time-factor', type=_real_time_factor, default=None,
+                        metavar='F', help="1: each gait at the robot's own pace, to watch "
+                        'it; 0: as fast as the machine allows (default: 1 with --gui, else '
+                        '0)')
     parser.add_argument('--interface', choices=('behavior', 'trajectory'), default='behavior',
                         help='behavior: the simulator plays the gaits; trajectory: the '
                         "hardware path, gait_executor on the simulator's ros2_control face "
@@ -118,6 +122,27 @@ def build_parser():
                         "--out/<node>.log)")
     arguments.take_negative_points(parser)  # --goal -1.4,1.2
     return parser
+
+
+def _real_time_factor(text):
+    """``--real-time-factor``: 0, or a factor the simulator takes."""
+    from sim_bridge.pacing import MIN_REAL_TIME_FACTOR
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+    if not (value == 0 or MIN_REAL_TIME_FACTOR <= value <= 1000):
+        raise argparse.ArgumentTypeError(f'must be 0 (as fast as the machine allows) or in '
+                                         f'[{MIN_REAL_TIME_FACTOR}, 1000], got {text}')
+    return value
+
+
+def _pace(args):
+    """The simulator's real_time_factor: the one given, else real time with a window."""
+    if args.real_time_factor is not None:
+        return args.real_time_factor
+    return 1.0 if args.gui else 0.0
 
 
 def _robot_and_damage(parser, args):
@@ -205,6 +230,7 @@ def main(argv=None):
                 # its import path, not its name.
                 cmd += ['-p', f'robot:={args.robot}', '-p', f'damage:={damage}',
                         '-p', f'seed:={args.seed}', '-p', f'sim.gui:={str(args.gui).lower()}',
+                        '-p', f'real_time_factor:={_pace(args)!r}',
                         '-p', f'archive:={archive}',  # the simulator runs the map's physics
                         '-p', f'interface:={args.interface}']
             if name == 'planner' and map_path:
