@@ -203,6 +203,7 @@ class HardwareFace:
 
         pace = self._pace(on_state, end=gait_end)
         result = self.env.execute_targets(targets, callback=pace, callback_period=pace.period)
+        pace.hold_until(self.env.robot.sim_time)  # a fallen robot's getting up included
         sim_time, (xyz, quaternion), positions, velocities = end
         if result.fallen:
             self._report_fall(None)
@@ -438,6 +439,7 @@ class SimBridge(HardwareFace, Node):
     def _run_gait(self, behavior_id, params):
         pace = self._pace(self._publish_state)
         result = self.env.execute(params, callback=pace, callback_period=pace.period)
+        pace.hold_until(self.env.robot.sim_time)  # a fallen robot's getting up included
         outcome = conv.BehaviorOutcome(
             behavior_id=behavior_id, generic_reward=result.observed_generic_reward,
             start_pose=result.observed_start, end_pose=result.observed_end,

@@ -47,11 +47,16 @@ class GaitPace:
         self.period = (min(self._publish_period, PACE_PERIOD) if self._factor > 0
                        else self._publish_period)
 
-    def __call__(self, sim_time, pose, positions, velocities):
+    def hold_until(self, sim_time):
+        """Wait until the wall clock has caught up with ``sim_time`` (after the gait: the
+        time a fallen robot takes to get up, which the simulator skips)."""
         if self._factor > 0:
             wait = self._wall_start + (sim_time - self._start) / self._factor - self._clock()
             if wait > 0 and self._sleep(wait):
                 self._factor = 0.0  # the wait was ended early: the rest runs unpaced
+
+    def __call__(self, sim_time, pose, positions, velocities):
+        self.hold_until(sim_time)
         if self._end is not None and sim_time >= self._end - self._tolerance:
             self._on_state(sim_time, pose, positions, velocities)
             return

@@ -83,3 +83,16 @@ def test_an_ended_wait_stops_the_pacing():
                     sleep=stop.wait)
     _run(pace, 0.0, 3.0, 0.01)
     assert wall.now == 100.0
+
+
+def test_the_time_a_fallen_robot_takes_to_get_up_is_held_too():
+    wall = FakeWall()
+    pace = GaitPace(lambda *_: None, 0.0, 0.5, 0.01, real_time_factor=2.0, clock=wall,
+                    sleep=wall.sleep)
+    start = wall.now
+    _run(pace, 0.0, 3.0, 0.01)
+    pace.hold_until(6.0)  # the simulator skipped 3 s of sim time: the robot getting up
+    assert wall.now - start == pytest.approx(3.0)
+    unpaced = GaitPace(lambda *_: None, 0.0, 0.5, 0.01, clock=wall, sleep=wall.sleep)
+    unpaced.hold_until(6.0)
+    assert wall.now - start == pytest.approx(3.0)
