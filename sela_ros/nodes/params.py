@@ -242,14 +242,26 @@ def declare(node, specs, on_change=None):
                 if p.name in specs and coerce(specs[p.name], p.value) is not p.value else p
                 for p in params]
 
+    def refused(params, reason):
+        # rclpy has already typed each dynamically typed parameter's descriptor after the
+        # value it refuses: `ros2 param describe` would show the refused value's type.
+        if not declaring[0]:
+            for param in params:
+                if node.has_parameter(param.name):
+                    node.describe_parameter(param.name).type = \
+                        node.get_parameter(param.name).type_.value
+        return SetParametersResult(successful=False, reason=reason)
+
     def validate(params):
         for param in params:
             spec = specs.get(param.name)
             problem = check(spec, param.value) if spec is not None else None
             if problem:
-                return SetParametersResult(successful=False, reason=f'{param.name} {problem}')
+                return refused(params, f'{param.name} {problem}')
         if on_change is not None and not declaring[0]:
             result = on_change(params)
+            if result is not None and not result.successful:
+                return refused(params, result.reason)
             if result is not None:
                 return result
         return SetParametersResult(successful=True)

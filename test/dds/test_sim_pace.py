@@ -3,7 +3,7 @@ import time
 
 import pytest
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import DescribeParameters, SetParameters
 
 from sela_ros.nodes import conversions as conv
 from sela_ros.nodes import interface as ifc
@@ -18,7 +18,9 @@ FACTOR = 4.0
 
 def _set_factor(client, value):
     cli = client.node.create_client(SetParameters, '/sim_bridge/set_parameters')
-    value_msg = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+    value_msg = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value) \
+        if isinstance(value, str) else \
+        ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
     request = SetParameters.Request(parameters=[Parameter(name='real_time_factor',
                                                           value=value_msg)])
     return client.call(cli, request).results[0]
@@ -57,6 +59,15 @@ def test_a_paced_gait_lasts_its_sim_time_over_the_factor():
         refused = _set_factor(client, 0.05)
         assert not refused.successful and 'must be 0 (no pacing) or at least 0.1' in \
             refused.reason
+        # A value of the wrong type is refused, and the parameter keeps its type: `ros2 param
+        # describe` says double still.
+        refused = _set_factor(client, 'fast')
+        assert not refused.successful and "got 'fast'" in refused.reason
+        describe = client.node.create_client(DescribeParameters,
+                                             '/sim_bridge/describe_parameters')
+        (descriptor,) = client.call(describe, DescribeParameters.Request(
+            names=['real_time_factor'])).descriptors
+        assert descriptor.type == ParameterType.PARAMETER_DOUBLE
         assert _set_factor(client, 0.0).successful
         _, unpaced = run(2)  # no pacing: the same gait, the same physics
         assert unpaced.duty_factors.shape == outcome.duty_factors.shape
