@@ -249,7 +249,12 @@ def parse_damage(spec, vocabulary: Vocabulary = HEXAPOD, robot: str = '') -> Dam
     weakened: dict[tuple[str, str], float] = {}
     friction: float | None = None
     payload: tuple[float, float, float] | None = None
-    for item in _items(spec.replace(' ', '').replace('\t', '').lower()):
+    items = _items(spec.replace(' ', '').replace('\t', '').lower())
+    said_intact = [item for item in items if item in ('intact', 'none')]
+    if said_intact and any(item not in ('', 'intact', 'none') for item in items):
+        raise DamageSpecError(f'{said_intact[0]!r} says the robot is undamaged and cannot be '
+                              f'combined with a damage: drop it or the rest, got {spec!r}')
+    for item in items:
         if item in ('', 'intact', 'none'):
             continue
         kind, _, rest = item.partition(':')

@@ -149,3 +149,11 @@ def test_every_leg_removed_is_refused_with_the_reason():
         parse_damage(','.join(f'remove:{leg}' for leg in LEG_NAMES))
     five = parse_damage(','.join(f'remove:{leg}' for leg in LEG_NAMES[1:]))
     assert len(five.removed) == 5  # one left: a damage, however bad
+
+
+@pytest.mark.parametrize('text', ['intact,remove:front_left', 'remove:front_left, none',
+                                  'friction:0.5,INTACT'])
+def test_intact_with_a_damage_is_a_contradiction_refused(text):
+    with pytest.raises(DamageSpecError, match='undamaged and cannot be combined with a damage'):
+        parse_damage(text)
+    assert parse_damage('intact,,intact').is_intact  # said twice: still no damage
