@@ -6,18 +6,18 @@ Usage: ``ros2 launch sela_ros sela_hexapod_launch.py [damage:=...] [seed:=...]
 Arguments: robot (hexapod; a1, toy or ``package.module:DESCRIPTION``: the simulated robot,
 docs/robots.md), damage ('' = the robot's default: remove:middle_right on the hexapod,
 block:rear_right.calf on the A1; in the robot's names, e.g. remove:front_left), seed (0), gui
-(false), real_time_factor (0: the simulator as fast as the machine allows; 1: each gait at
-the robot's own pace, to watch it), params_file (the installed config/sela.yaml), archive (''
-= the robot's shipped archive), map (the planner's map YAML, map_server's format or the
-project's, set as its map.file; '' = no file: the map.* parameters), namespace ('' = the
-root: every node, topic and service of the stack goes under it, so two robots can share a
-domain), rviz (false; true opens RViz with share/sela_ros/rviz/sela.rviz), interface
-(behavior; trajectory: the hardware path, the simulator showing the face of a robot under
-ros2_control and the gait executor playing the adapter's gaits on it, measured on the
-simulator's observed odometry: docs/hardware.md). The obstacle courses are installed in
-``$(ros2 pkg prefix sela_ros)/share/sela_ros/config/maps/`` (wall_gap.yaml, corridor.yaml,
-maze.yaml); a map published on ``map`` (by map_server) replaces the planner's. The goal
-command is in the README ("Send a goal").
+(false), real_time_factor ('' = the params file's, 0: the simulator as fast as the machine
+allows; 1: each gait at the robot's own pace, to watch it), params_file (the installed
+config/sela.yaml), archive ('' = the robot's shipped archive), map (the planner's map YAML,
+map_server's format or the project's, set as its map.file; '' = no file: the map.*
+parameters), namespace ('' = the root: every node, topic and service of the stack goes under
+it, so two robots can share a domain), rviz (false; true opens RViz with
+share/sela_ros/rviz/sela.rviz), interface (behavior; trajectory: the hardware path, the
+simulator showing the face of a robot under ros2_control and the gait executor playing the
+adapter's gaits on it, measured on the simulator's observed odometry: docs/hardware.md). The
+obstacle courses are installed in ``$(ros2 pkg prefix sela_ros)/share/sela_ros/config/maps/``
+(wall_gap.yaml, corridor.yaml, maze.yaml); a map published on ``map`` (by map_server)
+replaces the planner's. The goal command is in the README ("Send a goal").
 
 /tf and /tf_static are remapped to the namespace's ``tf``/``tf_static`` for
 robot_state_publisher and RViz (as nav2 does), so each robot has its own tree, and /clock to
@@ -74,10 +74,10 @@ def generate_launch_description():
                                           "default)"),
         DeclareLaunchArgument('seed', default_value='0', description='observation-noise seed'),
         DeclareLaunchArgument('gui', default_value='false', description="PyBullet's window"),
-        DeclareLaunchArgument('real_time_factor', default_value='0.0',
+        DeclareLaunchArgument('real_time_factor', default_value='',
                               description="1: the gaits at the robot's own pace (to watch in "
                                           'RViz or PyBullet\'s window); 0: as fast as the '
-                                          'machine allows'),
+                                          "machine allows ('' = the params file's, 0)"),
         DeclareLaunchArgument('archive', default_value='',
                               description="archive file ('' = the robot's shipped one)"),
         DeclareLaunchArgument('namespace', default_value='',
@@ -116,15 +116,18 @@ def robot_nodes(context, share):
     params = LaunchConfiguration('params_file')
     hardware = IfCondition(EqualsSubstitution(LaunchConfiguration('interface'), 'trajectory'))
     rviz = IfCondition(LaunchConfiguration('rviz'))
+    factor = LaunchConfiguration('real_time_factor').perform(context)
+    # Given: a substitution, typed as a number by launch_ros; else the params file's.
+    pace = {'real_time_factor': LaunchConfiguration('real_time_factor')} if factor else {}
     return [
         Node(package='sela_ros', executable='sim_bridge', name='sim_bridge', output='screen',
              parameters=[params, {'robot': spec,
                                   'damage': damage,
                                   'seed': LaunchConfiguration('seed'),
                                   'sim.gui': LaunchConfiguration('gui'),
-                                  'real_time_factor': LaunchConfiguration('real_time_factor'),
                                   'archive': archive,
-                                  'interface': LaunchConfiguration('interface')}],
+                                  'interface': LaunchConfiguration('interface'),
+                                  **pace}],
              remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='gait_executor', name='gait_executor',
              output='screen', parameters=[params, {
