@@ -5,9 +5,9 @@ Usage: ``ros2 launch sela_ros sela_hexapod_launch.py [damage:=...] [seed:=...]
 
 Arguments: robot (hexapod; a1, toy or ``package.module:DESCRIPTION``: the simulated robot,
 docs/robots.md), damage ('' = the robot's default: remove:middle_right on the hexapod,
-block:rear_right.calf on the A1; in the robot's names, e.g. remove:front_left), seed (0), gui
-(false), real_time_factor ('' = the params file's, 0: the simulator as fast as the machine
-allows; 1: each gait at the robot's own pace, to watch it), params_file (the installed
+block:rear_right.calf on the A1; in the robot's names, e.g. remove:front_left), seed, gui,
+real_time_factor ('' = the params file's: 0, false, 0; real_time_factor 1: each gait at the
+robot's own pace, to watch it, 0: as fast as the machine allows), params_file (the installed
 config/sela.yaml), archive ('' = the robot's shipped archive), map (the planner's map YAML,
 map_server's format or the project's, set as its map.file; '' = no file: the map.*
 parameters), namespace ('' = the root: every node, topic and service of the stack goes under
@@ -72,8 +72,10 @@ def generate_launch_description():
                               description="damage spec in the robot's names, e.g. "
                                           "remove:middle_right or intact ('' = the robot's "
                                           "default)"),
-        DeclareLaunchArgument('seed', default_value='0', description='observation-noise seed'),
-        DeclareLaunchArgument('gui', default_value='false', description="PyBullet's window"),
+        DeclareLaunchArgument('seed', default_value='',
+                              description="observation-noise seed ('' = the params file's, 0)"),
+        DeclareLaunchArgument('gui', default_value='',
+                              description="PyBullet's window ('' = the params file's, false)"),
         DeclareLaunchArgument('real_time_factor', default_value='',
                               description="1: the gaits at the robot's own pace (to watch in "
                                           'RViz or PyBullet\'s window); 0: as fast as the '
@@ -116,18 +118,18 @@ def robot_nodes(context, share):
     params = LaunchConfiguration('params_file')
     hardware = IfCondition(EqualsSubstitution(LaunchConfiguration('interface'), 'trajectory'))
     rviz = IfCondition(LaunchConfiguration('rviz'))
-    factor = LaunchConfiguration('real_time_factor').perform(context)
-    # Given: a substitution, typed as a number by launch_ros; else the params file's.
-    pace = {'real_time_factor': LaunchConfiguration('real_time_factor')} if factor else {}
+    # The simulator's settings given as arguments: substitutions, typed by launch_ros (a
+    # performed '1' would stay a string); those not given are the params file's.
+    given = {name: LaunchConfiguration(argument) for name, argument in (
+        ('seed', 'seed'), ('sim.gui', 'gui'), ('real_time_factor', 'real_time_factor'))
+        if LaunchConfiguration(argument).perform(context)}
     return [
         Node(package='sela_ros', executable='sim_bridge', name='sim_bridge', output='screen',
              parameters=[params, {'robot': spec,
                                   'damage': damage,
-                                  'seed': LaunchConfiguration('seed'),
-                                  'sim.gui': LaunchConfiguration('gui'),
                                   'archive': archive,
                                   'interface': LaunchConfiguration('interface'),
-                                  **pace}],
+                                  **given}],
              remappings=CLOCK_REMAP),
         Node(package='sela_ros', executable='gait_executor', name='gait_executor',
              output='screen', parameters=[params, {

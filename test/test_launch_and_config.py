@@ -206,17 +206,20 @@ def test_robot_a1_runs_the_stack_on_the_a1_its_map_model_and_fall_test(monkeypat
         _load_launch(monkeypatch, 'sela_hexapod_launch.py', robot='walrus')
 
 
-def test_real_time_factor_is_the_params_files_unless_given(monkeypatch):
+def test_the_simulators_seed_window_and_pace_are_the_params_files_unless_given(monkeypatch):
     def sim_parameters(**values):
         launch = _load_launch(monkeypatch, 'sela_hexapod_launch.py', **values)
         (sim,) = [n for n in _nodes(launch) if n.kwargs['executable'] == 'sim_bridge']
         return sim.kwargs['parameters'][1]
 
-    assert 'real_time_factor' not in sim_parameters()  # the params file's (0 shipped)
-    given = sim_parameters(real_time_factor='1')['real_time_factor']
-    # a substitution, which launch_ros types as a number (a plain '1' would stay a string)
-    assert type(given).__name__ == 'LaunchConfiguration'
-    assert given.args[0] == 'real_time_factor'
+    # the params file's (0, false, 0 shipped) unless given
+    assert not {'seed', 'sim.gui', 'real_time_factor'} & set(sim_parameters())
+    given = sim_parameters(real_time_factor='1', seed='7', gui='true')
+    for name, argument in (('real_time_factor', 'real_time_factor'), ('seed', 'seed'),
+                           ('sim.gui', 'gui')):
+        # a substitution, which launch_ros types (a plain '1' would stay a string)
+        assert type(given[name]).__name__ == 'LaunchConfiguration'
+        assert given[name].args[0] == argument
 
 
 def test_a_robot_named_by_its_import_path_reaches_the_nodes_as_named(monkeypatch):
