@@ -24,6 +24,11 @@ class StateError(ValueError):
     """A state file that cannot be used (corrupt, or for another archive)."""
 
 
+class OtherLearnersState(StateError):
+    """A sound state of another archive, or learned on another kind of learner (a simulator,
+    a robot): set aside to be resumed where it belongs."""
+
+
 class NotAStateFile(StateError):
     """Something other than a regular file where the state file should be: left alone."""
 
@@ -160,13 +165,13 @@ def load_state(path, archive_size, gr_dim=3, limits=None, learned_on=None):
                          f'{STATE_FORMAT})')
     size = state.get('archive_size')
     if size != archive_size:
-        raise StateError(f'state file {path} was written for an archive of {size} behaviours, '
-                         f'the loaded archive has {archive_size}')
+        raise OtherLearnersState(f'state file {path} was written for an archive of {size} '
+                                 f'behaviours, the loaded archive has {archive_size}')
     source = state.get('learned_on')
     if learned_on is not None and source is not None and source != learned_on:
-        raise StateError(f'state file {path} was learned on {_said(source)}, and this adapter '
-                         f'learns on {_said(learned_on)}: what one taught would mislead the '
-                         'other')
+        raise OtherLearnersState(f'state file {path} was learned on {_said(source)}, and this '
+                                 f'adapter learns on {_said(learned_on)}: what one taught would '
+                                 'mislead the other')
     for key in ('sela', 'mission'):
         if not isinstance(state.get(key), dict):
             raise StateError(f'state file {path} has no {key!r} section')
@@ -284,10 +289,14 @@ def resume_state(path, archive_size, restore, gr_dim=3, limits=None, learned_on=
     except Exception as exc:  # noqa: BLE001 - whatever the file holds, the node starts
         reason = str(exc) if isinstance(exc, StateError) else (
             f'state file {path} cannot be used: {type(exc).__name__}: {exc}')
+        belongs_elsewhere = isinstance(exc, OtherLearnersState)
     try:
         kept = set_aside(path, reason)
     except OSError as exc:
         return None, f'{reason}; could not set it aside ({exc}); started afresh'
+    if belongs_elsewhere:  # nothing wrong with it: to be resumed where it belongs
+        return None, (f'{reason}; kept it as {kept} and started afresh (state_file:={kept} '
+                      'resumes it with the archive and the learner it was written for)')
     return None, f'{reason}; kept it as {kept} and started afresh'
 
 

@@ -133,10 +133,26 @@ def test_what_a_simulator_taught_does_not_resume_on_a_robot_nor_the_other_way(tm
     restored, message = resume_state(path, SIZE, lambda s: None, learned_on=robot)
     assert restored is None and 'kept it as' in message  # set aside: nothing learned lost
     kept = next(tmp_path.glob('state.json.unusable-*[0-9]'))
+    # sound, only another learner's: the message says how to resume it where it belongs
+    assert f'state_file:={kept} resumes it with the archive and the learner' in message
     assert json.loads(kept.read_text())['learned_on'] == simulated
     # A file that does not say what it was learned on resumes anywhere.
     atomic_write_json(path, _good())
     assert load_state(path, SIZE, learned_on=robot)['mission'] == {'steps': 2}
+
+
+def test_another_archives_state_is_kept_to_be_resumed_with_that_archive(tmp_path):
+    path = tmp_path / 'state.json'
+    atomic_write_json(path, _good())
+    restored, message = resume_state(path, SIZE + 1, lambda s: None)
+    assert restored is None and not path.exists()
+    kept = next(tmp_path.glob('state.json.unusable-*[0-9]'))
+    assert 'written for an archive of 20 behaviours, the loaded archive has 21' in message
+    assert f'state_file:={kept} resumes it' in message
+    assert resume_state(kept, SIZE, lambda s: None)[0]['mission'] == {'steps': 2}
+    # a broken file is not said to be resumable anywhere
+    path.write_text('{"format": 1')
+    assert 'resumes it' not in resume_state(path, SIZE, lambda s: None)[1]
 
 
 def test_older_unusable_files_are_never_overwritten(tmp_path):
