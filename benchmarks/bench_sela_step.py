@@ -95,7 +95,7 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
         priors = shipped
     elif isinstance(priors, int):
         priors = library_like(shipped, priors, seed)
-    else:
+    elif isinstance(priors, str):
         priors = resolve_priors(priors, default_archive_path(), archive.params)
     # One table chosen (priors.weights.sd none), or the tables mixed (the default).
     config = {} if mixed else {'priors.weights.sd': 'none'}
@@ -138,6 +138,42 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
     mapped = sela.config.gp_mean_affine is not None and sela._affine_score > 0.0
     return (float(np.median(times)), float(np.min(times)), len(archive), d.prior,
             int(sela.config.planner_horizon), cautious, mapped)
+
+
+def self_model_priors(pair='remove:front_left,remove:middle_left', seed=0):
+    """``(priors, seconds)``: the shipped priors less ``pair`` (and its near duplicates, as
+    the leave-one-out does) plus the self-model's table of it, made as the adapter makes it
+    (:meth:`SelfModel.install`, its outcomes read off the pair's shipped table, which
+    simulated them), and the wall time the install took."""
+    from sela_ros.core.learning import resolve_priors
+    from sela_ros.core.learning.self_model import from_archive
+    from sela_ros.core.storage import default_archive_path, load_archive
+    from sela_ros.experiments.workers import own_and_near
+    from sim_bridge.robots import get_robot
+
+    archive = load_archive(default_archive_path())
+    shipped = resolve_priors('auto', default_archive_path(), archive.params)
+    truth = shipped.names.index(pair)
+    priors = shipped
+    for name in own_and_near(shipped, pair):
+        priors = priors.without(name)
+    legs = get_robot('hexapod').legs
+    model = from_archive(archive, legs)
+    lost = [legs.index(part.split(':')[1]) for part in pair.split(',')]
+    known = ~shipped.inferred(truth)
+    rng = np.random.default_rng(seed)
+    wanted = None
+    for g in rng.permutation(np.flatnonzero(known))[:20]:
+        feet = archive.descriptors[g, 2:].copy()
+        feet[lost] = 0.0
+        model.observe(g, feet)
+        wanted = wanted or model.request(priors)
+    damage, gaits = wanted
+    gaits = gaits[known[gaits]]  # those the pair's table simulated
+    t0 = time.perf_counter()
+    out = model.install(priors, damage, gaits, shipped.generic_reward[truth, gaits],
+                        shipped.fallen[truth, gaits])
+    return out, time.perf_counter() - t0
 
 
 def shipped_names():
@@ -298,6 +334,14 @@ def main():
         print(f'  the same on {pair} (the priors\' second tier; prior in use: {prior}): '
               f'median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms)'
               f'{_on(cautious)}')
+    if pair in shipped_names():
+        priors, install = self_model_priors(pair)
+        t, t_min, gaits, prior, horizon, cautious, _ = bench_shipped(
+            damage=pair, priors=priors, caution=args.caution, mean_affine=args.mean_affine)
+        print(f'  the same, its table left out and the self-model\'s table of it in the first '
+              f'tier (prior in use: {prior}): median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} '
+              f'ms (target < 20 ms){_on(cautious)}; the table installed in '
+              f'{1e3 * install:.0f} ms, once')
     for label, priors in ((f'{args.tables} tables like a library\'s', args.tables),
                           (args.library, args.library)):
         if not priors:

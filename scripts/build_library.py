@@ -40,6 +40,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from sela_ros.core.learning.table_inference import gait_subset, infer  # noqa: E402
+
 LEGS = ('front_left', 'middle_left', 'rear_left', 'front_right', 'middle_right', 'rear_right')
 SHORTEN_FACTORS = (0.3, 0.6, 0.8)
 BLOCKED = (('knee', -0.4), ('knee', 0.0), ('knee', 0.4), ('hip_pitch', -0.3),
@@ -70,34 +72,12 @@ def conditions():
     return out
 
 
-def gait_subset(descriptors, count, speed=None, covering=COVERING_GAITS, first=0):
-    """``count`` gait indices, deterministic (a build resumes the same plan): the first
-    ``covering`` cover the descriptors (farthest-point sampling from gait ``first``, so that
-    every gait is near an evaluated one), then, with ``speed`` (each gait's distance on the
-    intact robot), the fastest gaits not chosen yet."""
-    descriptors = np.asarray(descriptors, dtype=float)
-    count = min(int(count), len(descriptors))
-    spread = count if speed is None else min(count, int(covering))
-    chosen = [int(first)]
-    gap = np.sum((descriptors - descriptors[first]) ** 2, axis=1)
-    for _ in range(spread - 1):
-        nxt = int(np.argmax(gap))
-        chosen.append(nxt)
-        np.minimum(gap, np.sum((descriptors - descriptors[nxt]) ** 2, axis=1), out=gap)
-    if count > spread:
-        taken = np.zeros(len(descriptors), bool)
-        taken[chosen] = True
-        fastest = [int(g) for g in np.argsort(-np.asarray(speed), kind='stable')
-                   if not taken[g]]
-        chosen += fastest[:count - spread]
-    return np.array(chosen, dtype=int)
-
-
 def archive_subset(archive, count):
     """The gaits a build evaluates on ``archive``: :func:`gait_subset` with the intact
     robot's distances."""
     gr = archive.generic_reward
-    return gait_subset(archive.normalised_descriptors(), count, np.hypot(gr[:, 0], gr[:, 1]))
+    return gait_subset(archive.normalised_descriptors(), count, np.hypot(gr[:, 0], gr[:, 1]),
+                       COVERING_GAITS)
 
 
 def plan(num_gaits, gaits, shipped=()):
@@ -174,30 +154,6 @@ def build(archive, out, gaits, chunk, workers, only=None, skip=(), specs=None, c
             for n, result in enumerate(pool.map(_evaluate, jobs), 1):
                 save(result, n)
     return len(jobs)
-
-
-def infer(descriptors, base, gaits, gr, fallen, sigma, noise_ratio=0.1, rows=2000):
-    """Every gait's generic reward and fall flag on one condition from the gaits evaluated:
-    the GP posterior mean of the deviation from the intact map ``base`` and of the fall
-    label (prior 0), exponential kernel of length ``sigma`` over the descriptors."""
-    from scipy.linalg import cho_factor, cho_solve
-
-    from sela_ros.core.learning import exponential_kernel
-
-    x = descriptors[gaits]
-    targets = np.column_stack([gr - base[gaits], fallen.astype(float)])
-    scale = targets.std(axis=0)
-    scale[scale == 0] = 1.0
-    k = exponential_kernel(x, x, sigma) + noise_ratio * np.eye(len(gaits))
-    alpha = cho_solve(cho_factor(k), targets / scale)
-    mean = np.empty((len(descriptors), targets.shape[1]))
-    for i in range(0, len(descriptors), rows):
-        mean[i:i + rows] = exponential_kernel(descriptors[i:i + rows], x, sigma) @ alpha
-    mean *= scale
-    out_gr = base + mean[:, :3]
-    out_fallen = mean[:, 3] > 0.5
-    out_gr[gaits], out_fallen[gaits] = gr, fallen  # the evaluated ones as they are
-    return out_gr, out_fallen
 
 
 def check_inference(archive, shipped, gaits):

@@ -113,6 +113,10 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            'bound-fit-signed': None,
            'caution': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                        'gp.mean.affine': 'none'},
+           **{f'selfmodel-{g}-{d}{t}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
+                                        'gp.mean.affine': 'none',
+                                        'self_model': (g, g // 2, d, not t)}
+              for g in (300, 600) for d in (0, 3) for t in ('', '-second')},
            'alpha-0.0': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                          'gp.mean.affine': 'none', 'acquisition.ucb.alpha': 0.0},
            **{f'caution-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': v,
@@ -332,6 +336,7 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
               horizon=settings.get('planner.horizon'), trace=args.trace,
               reach=settings.get('planner.reach', 'none'),
               alpha=settings.get('acquisition.ucb.alpha'),
+              self_model=self_model_config(settings.get('self_model')),
               **extra)
     out = run_method(job)
     foreseen = is_foreseen(label, method) if method in (*OWN_LIBRARY_METHODS, 'bound-own') else (
@@ -342,6 +347,14 @@ def run_one(shipped, case, goal, method, seed, args, library=None):
             'behaviors': out['behaviors'],
             **({'left_out': left_out} if method in LIBRARY_METHODS else {}),
             **({'steps_detail': out['steps_detail']} if 'steps_detail' in out else {})}
+
+
+def self_model_config(value):
+    """A method's ``self_model`` ``(gaits, covering, delay steps)`` as the runner takes it
+    (None: no self-model)."""
+    from sela_ros.core.learning.self_model import SelfModelConfig
+
+    return None if value is None else SelfModelConfig(*value)
 
 
 _ORACLE_TABLES = {}

@@ -51,6 +51,20 @@ def evaluate_gait(params, damage='intact', dt: float = SIM_DEFAULTS['dt'],
     return sim.execute(params)
 
 
+def simulate_gaits(params, damage, settings=None, robot=None):
+    """``(generic rewards (n, 3), fallen (n,))`` of each gait of ``params`` ``(n, P)`` from a
+    fresh standing start on ``damage``: a damage hypothesis's outcomes for the self-model
+    (:mod:`sela_ros.core.learning.self_model`). ``settings``: the map's simulator settings
+    (``dt``, ``gait_duration``, ``solver_iterations``; None: the defaults)."""
+    import numpy as np
+
+    settings = {**SIM_DEFAULTS, **(settings or {})}
+    outcomes = [evaluate_gait(p, damage, settings['dt'], settings['gait_duration'],
+                              settings['solver_iterations'], robot) for p in params]
+    return (np.array([o.generic_reward for o in outcomes], dtype=float).reshape(-1, 3),
+            np.array([o.fallen for o in outcomes], dtype=bool))
+
+
 def worker_pool(workers: int) -> ProcessPoolExecutor:
     """A pool of ``workers`` processes that start from a fresh ``forkserver`` (``spawn``
     where unavailable), never from a fork of the caller: a forked worker would inherit the

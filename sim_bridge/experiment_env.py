@@ -70,6 +70,7 @@ class RobotEnvironment:
         self.observed = ObservedHexapod(self.robot, noise_std=noise_std, seed=seed)
         self.falls = 0
         self.sim_seconds = 0.0
+        self.last_execution = None  # the last gait's Execution (its feet: duty_factors)
         self._moved = False  # a gait ran since the robot was built or reset
 
     def close(self) -> None:
@@ -112,7 +113,7 @@ class RobotEnvironment:
         # A fallen robot gets up where it lies (ObservedHexapod): the observation after the
         # gait stays valid.
         self._moved = True
-        execution = self.observed.execute(self.params[index])
+        execution = self.last_execution = self.observed.execute(self.params[index])
         if execution.fallen:
             self.falls += 1
         self.sim_seconds += time.perf_counter() - start

@@ -71,6 +71,13 @@ def positive_int(text):
     return value
 
 
+def non_negative_int(text):
+    value = _integer(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 0, got {value}')
+    return value
+
+
 def seed(text):
     value = _integer(text, 'an integer seed')
     if value < 0:

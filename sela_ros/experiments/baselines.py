@@ -93,6 +93,10 @@ class Problem:
             decision loop: its stepper's and damage detector's settings (the node's
             defaults), and whether the detector runs (False: adaptation from the first step
             only if ``stepper.adapt_on_start``). ``max_steps`` caps each goal of a mission.
+        self_model: for ``sela``, ``(SelfModel, simulate)``: the self-model
+            (:class:`~sela_ros.core.learning.self_model.SelfModel`) that reads each step's feet
+            (the environment's ``last_execution``) and the robot's simulator that runs its
+            hypotheses (:func:`~sela_ros.core.mission.run_mission`); None: none.
     """
 
     candidates: np.ndarray
@@ -115,6 +119,7 @@ class Problem:
     stepper: StepperConfig = dataclasses.field(default_factory=StepperConfig)
     detector: DetectorConfig = dataclasses.field(default_factory=DetectorConfig)
     detect: bool = True
+    self_model: object = None
 
     def make_sela(self, extensions=False) -> SELA:
         """A SELA over the problem; ``extensions``: with what this project adds to the
@@ -217,11 +222,12 @@ def run_sela(env, problem: Problem, rng: np.random.Generator) -> RunResult:
     ``sela_adapter`` node runs (:func:`~sela_ros.core.mission.run_mission`: the stepper, the
     damage detector, the planner's whole path), with the node's defaults."""
     env.reset()
+    model, simulate = problem.self_model or (None, None)
     run = run_mission(env, problem.make_sela(extensions=True), [*problem.via, problem.goal],
                       problem.planner or straight_line_planner,
                       detector_config=problem.detector, stepper_config=dataclasses.replace(
                           problem.stepper, max_steps=problem.max_steps),
-                      detect=problem.detect)
+                      detect=problem.detect, self_model=model, simulate=simulate)
     return RunResult(run.success, run.steps, 0, run.goal_steps,
                      [r.behavior_index for r in run.logic.records], list(run.logic.records))
 

@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from sela_ros.core.learning import SE2Motion, SELAConfig
+from sela_ros.core.learning.self_model import SelfModelConfig
 from sela_ros.core.planning import DEFAULT_INFLATION, PlanningError
 from sela_ros.experiments import arguments
 from sela_ros.experiments.baselines import METHODS, Problem
@@ -247,6 +248,18 @@ def add_priors_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--priors-leave-out-own', action='store_true',
                         help="drop the run's own damage from the damage priors, as if "
                              'nobody had foreseen it')
+    parser.add_argument('--self-model-gaits', type=arguments.non_negative_int,
+                        default=SelfModelConfig.gaits,
+                        help="SELA's self-model (the sela_adapter's self_model.*): gaits "
+                             'simulated for the damage the feet show, its table in use '
+                             f'{SelfModelConfig.delay_steps} steps later; 0: no self-model '
+                             '(default %(default)s)')
+
+
+def self_model_argument(args):
+    """The runs' self-model settings from ``--self-model-gaits`` (0: none)."""
+    gaits = getattr(args, 'self_model_gaits', SelfModelConfig.gaits)
+    return SelfModelConfig(gaits=gaits, covering=gaits // 2) if gaits else None
 
 
 def ite_targets(prior_gr) -> np.ndarray:
@@ -397,6 +410,9 @@ class Job:
     # a given table as its prior, for bounds (scripts/compare_priors.py, bound-own, bound-fit)
     prior_mean: object = None
     robot: str = None  # what finds the robot in a worker (None: the archive's, by its name)
+    # the self-model's settings (sela_ros.core.learning.self_model.SelfModelConfig; None: none):
+    # the sela_adapter node's defaults
+    self_model: object = SelfModelConfig()
 
 
 class _OracleProgress:
@@ -466,6 +482,9 @@ def run_method(job: Job):
         if job.prior_mean is not None:
             problem = dataclasses.replace(problem,
                                           prior_gr=np.asarray(job.prior_mean, dtype=float))
+        if job.self_model is not None and job.name == 'sela':
+            problem = dataclasses.replace(problem, self_model=make_self_model(
+                archive, sim.robot.description, job.self_model))
         result = METHODS[job.name](env, problem, np.random.default_rng(method_seed))
         final = env.true_pose()
         out = {'success': bool(result.success), 'steps': int(result.steps),
@@ -481,6 +500,23 @@ def run_method(job: Job):
             out.update(collisions=int(env.collisions), path=env.path,
                        goal_steps=list(result.goal_steps))
         return out
+
+
+def make_self_model(archive, robot, config):
+    """``(SelfModel, simulate)``: a :class:`~sela_ros.core.learning.self_model.SelfModel` of
+    ``robot`` (a description) over ``archive``, and its hypotheses' simulator, as the damage
+    library's gaits are simulated (:func:`sim_bridge.evaluation.simulate_gaits`, here); None
+    for a map whose descriptor holds no duty factors."""
+    from sela_ros.core.learning.self_model import from_archive
+    from sim_bridge.evaluation import simulate_gaits
+
+    def simulate(damage, gaits):
+        return simulate_gaits(archive.params[gaits], damage, archive.simulator_settings, robot)
+
+    try:
+        return from_archive(archive, robot.legs, config), simulate
+    except ValueError:  # a map with no duty factors (2-D): no feet to read
+        return None
 
 
 def step_detail(record) -> dict:
@@ -558,7 +594,8 @@ def run(args, progress=None) -> dict:
                             args.fall_risk, map_path, inflation, tuple(map(tuple, via)),
                             getattr(args, 'fall_kernel_sigma', None),
                             getattr(args, 'fall_cost', None), priors_value, leave_out_own,
-                            getattr(args, 'horizon', None), robot=robot))
+                            getattr(args, 'horizon', None), robot=robot,
+                            self_model=self_model_argument(args)))
     per_rep = len(args.methods)
     results = []
     start = time.perf_counter()

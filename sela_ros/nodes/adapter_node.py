@@ -35,6 +35,7 @@ from sela_ros.nodes.guard import guard, guard_parameters, guard_service
 from sela_ros.nodes.heartbeat import LivenessMonitor, add_heartbeat
 from sela_ros.nodes.node_main import run_node
 from sela_ros.nodes.params import declare
+from sela_ros.nodes.self_model_runner import SelfModelSimulations
 from sela_ros.nodes.sim_check import SimulatorCheck
 
 TICK_PERIOD = 0.25  # s (wall): time-outs only, steps advance on events
@@ -52,6 +53,7 @@ class SelaAdapter(Node):
         self.goal_frames = conv.goal_frames(self.frame_id, self.values['map_frame'])
         # The planner's map (latched) rules out goals off it at once.
         self.archive = self.archive_path = self.stepper = self.map = self.priors = None
+        self.simulations = None  # SelfModelSimulations of the archive in use (None: none)
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         # Saves are written off the executor's thread; what announces a step waits for the
         # save before it (acknowledged means durable) and is released on the executor's
@@ -160,6 +162,9 @@ class SelaAdapter(Node):
         elif self._deferred_plan is not None and self.plan_client.service_is_ready():
             command, self._deferred_plan = self._deferred_plan, None
             self._request_plan(command)
+        if self.simulations is not None:
+            for answer in self.simulations.poll():
+                self.feed(answer)
         self.feed(io.Tick())
         self._repeat_result()
 
@@ -269,14 +274,37 @@ class SelaAdapter(Node):
         self.archive, self.archive_path = archive, path
         self.priors = adapter_support.load_priors(self.values['priors.tables'], archive, path,
                                                   self.get_logger())
+        self._use_self_model(archive)
         self.stepper = adapter_support.new_stepper(
-            self.values, archive, self.priors, next_id=1 if old is None else old.next_id)
+            self.values, archive, self.priors, next_id=1 if old is None else old.next_id,
+            self_model=self._self_model())
         self.sim_check.use(archive, path)
         self.get_logger().info(f'archive {path}: {len(archive)} behaviours, '
                                f'{archive.descriptors.shape[1]}-D descriptors, kernel length '
                                f'{self.stepper.sela.config.gp_kernel_sigma:g}')
         for event in adapter_support.carried_over(old):
             self.feed(event)
+
+    def _use_self_model(self, archive):
+        """The self-model's simulations for ``archive`` (those under way for another are
+        dropped)."""
+        if self.simulations is not None:
+            self.simulations.close()
+            self.simulations = None
+        model, robot, why_not = adapter_support.self_model(self.values, archive)
+        if why_not:
+            self.get_logger().warn(why_not)
+        if model is not None:
+            self.simulations = SelfModelSimulations(archive.params, archive.simulator_settings,
+                                                    robot, self.values['self_model.workers'])
+            self.get_logger().info(
+                f'self-model: the feet of the {robot} are read; a damage they show is '
+                f'simulated on {self.values["self_model.gaits"]} gaits beside the mission')
+
+    def _self_model(self):
+        """A fresh self-model for a new stepper (None: none)."""
+        return None if self.simulations is None else \
+            adapter_support.self_model(self.values, self.archive)[0]
 
     def _resume(self):
         """Take back what the state file holds; an unusable file is set aside with the
@@ -286,7 +314,8 @@ class SelaAdapter(Node):
 
         def restore(state):
             # Into a fresh stepper, swapped in below only once all of it came back.
-            stepper = adapter_support.new_stepper(self.values, self.archive, self.priors)
+            stepper = adapter_support.new_stepper(self.values, self.archive, self.priors,
+                                                  self_model=self._self_model())
             restored['commands'] = stepper.restore(state, self.now())
             restored['stepper'] = stepper
 
@@ -339,6 +368,11 @@ class SelaAdapter(Node):
                 # Acknowledged means durable: out once the saves before it are on disk.
                 self.store.after_saves(c)
                 self._release_saved()
+            elif isinstance(c, io.SimulateDamage):
+                if self.simulations is None:  # a stepper given no self-model never asks
+                    self.feed(io.DamageSimulated(c.damage, c.gaits, error='no simulator'))
+                else:
+                    self.simulations.submit(c)
             elif isinstance(c, io.Report):
                 self.report(c.level, c.message)
             elif isinstance(c, io.Reply):
@@ -423,6 +457,8 @@ class SelaAdapter(Node):
 
     def destroy_node(self):
         self.actions.destroy()
+        if self.simulations is not None:
+            self.simulations.close()
         self.store.close()  # the last snapshot reaches the disk
         super().destroy_node()
 

@@ -51,11 +51,32 @@ def load_priors(setting, archive, path, logger):
     return priors
 
 
-def new_stepper(values, archive, priors, next_id=1):
+def new_stepper(values, archive, priors, next_id=1, self_model=None):
     """A stepper over ``archive`` with the node's parameter ``values``; command ids from
-    ``next_id`` (they stay unique across archives)."""
+    ``next_id`` (they stay unique across archives); ``self_model``: its self-model
+    (:func:`self_model`), or None."""
     return MissionStepper(make_sela(archive, params.sela_config(values), priors=priors),
-                          params.stepper_config(values, archive), next_id=next_id)
+                          params.stepper_config(values, archive), next_id=next_id,
+                          self_model=self_model)
+
+
+def self_model(values, archive):
+    """``(SelfModel, robot, why not)`` for ``archive`` with the node's ``values``: the
+    self-model (None: none) and what finds the robot's simulator in a worker
+    (``sim_bridge.robots.robot_spec``); ``why not``: the reason there is none though
+    ``self_model.enabled`` asks for one ('' if it is off or there is one)."""
+    if not values['self_model.enabled']:
+        return None, None, ''
+    try:
+        from sela_ros.core.learning.self_model import SelfModelConfig, from_archive
+        from sim_bridge.robots import get_robot, robot_of, robot_spec
+
+        robot = get_robot(robot_of(archive.metadata))
+        model = from_archive(archive, robot.legs, SelfModelConfig(
+            gaits=int(values['self_model.gaits']), covering=int(values['self_model.gaits']) // 2))
+        return model, robot_spec(robot), ''
+    except (ImportError, ValueError) as exc:
+        return None, None, f'no self-model: {exc}'
 
 
 def carried_over(old):

@@ -252,7 +252,8 @@ def outcome_event(msg):
     o = outcome_from_msg(msg)
     return OutcomeReceived(o.behavior_id, tuple(o.generic_reward), tuple(o.end_pose),
                            o.fallen, o.sim_time, standing_start=o.standing_start,
-                           start_pose=tuple(o.start_pose))
+                           start_pose=tuple(o.start_pose),
+                           duty_factors=tuple(map(float, o.duty_factors)))
 
 
 def verdict_event(msg):

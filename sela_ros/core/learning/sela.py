@@ -83,6 +83,9 @@ def prior_reason(name) -> str:
     if name == MIXTURE:
         return ('no table reproduced the steps from a standing start: the tables weighed '
                 'by how well they explain the steps seen')
+    if str(name).startswith('self-model '):
+        return ("the robot's simulator playing the damage its feet show, which best explains "
+                'the steps seen')
     return 'the one that best explains the steps seen'
 
 

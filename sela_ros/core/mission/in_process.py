@@ -32,6 +32,7 @@ from sela_ros.core.detection import DamageDetector, DetectorConfig
 from sela_ros.core.geometry import quaternion_to_yaw, yaw_to_quaternion
 from sela_ros.core.mission.stepper import MissionStepper
 from sela_ros.core.mission.stepper_io import (
+    DamageSimulated,
     GoalsReceived,
     MissionEnded,
     OutcomeReceived,
@@ -42,6 +43,7 @@ from sela_ros.core.mission.stepper_io import (
     RequestReset,
     ResetDone,
     SendGait,
+    SimulateDamage,
     StepperConfig,
     Tick,
     VerdictReceived,
@@ -87,7 +89,7 @@ class MissionRun:
 
 
 def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=None,
-                on_step=None, detect=True) -> MissionRun:
+                on_step=None, detect=True, self_model=None, simulate=None) -> MissionRun:
     """Run one mission in process, through the node's stepper, from wherever ``env`` stands.
 
     Args:
@@ -105,9 +107,16 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
         stepper_config: :class:`StepperConfig` (the node's defaults if None).
         on_step: called with each step's record once the step is judged.
         detect: run the damage detector (False: adaptation only as ``adapt_on_start``).
+        self_model: a :class:`~sela_ros.core.learning.self_model.SelfModel` that reads each
+            step's feet (``env.last_execution.duty_factors``); None: none.
+        simulate: ``(damage, gaits) -> (generic rewards (n, k), fallen (n,))``, the robot's
+            simulator, for the self-model's hypotheses: run here at once, its answer given to
+            the stepper ``self_model.config.delay_steps`` gaits later (the time it takes a
+            robot beside its mission).
     """
     config = stepper_config or StepperConfig()
-    stepper = MissionStepper(sela, config)
+    stepper = MissionStepper(sela, config, self_model=self_model)
+    simulated = []  # (the gaits sent when it is answered, DamageSimulated)
     detector = DamageDetector(detector_config or DetectorConfig())
     now = 0.0  # the stepper's time: one second per event, so no time-out fires unless waited
     goals = [tuple(float(v) for v in np.asarray(g, dtype=float).reshape(-1)[:2])
@@ -134,7 +143,13 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
                                            path=tuple(map(tuple, np.asarray(path, float)))))
             except PlanningError as exc:
                 events.append(PlanReceived(command.step, command.start, None, str(exc)))
+        elif isinstance(command, SimulateDamage):
+            simulated.append((stepper.logic.steps + self_model.config.delay_steps,
+                              _simulated(simulate, command)))
         elif isinstance(command, SendGait):
+            for due, answer in [s for s in simulated if s[0] <= stepper.logic.steps]:
+                simulated.remove((due, answer))
+                commands += handle(answer)
             before = np.asarray(env.observed_pose(), dtype=float).copy()
             standing = bool(getattr(env, 'standing', False))
             fell = getattr(env, 'falls', 0)
@@ -143,10 +158,12 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             falls += int(fallen)
             observed = sela.motion.generic_reward(before, after)
             learnt = stepper.logic.steps
+            execution = getattr(env, 'last_execution', None)
+            duty = None if execution is None else tuple(map(float, execution.duty_factors))
             commands += handle(OutcomeReceived(
                 command.behavior_id, tuple(observed), tuple(after), fallen,
                 true_pose=tuple(env.true_pose()), standing_start=standing,
-                start_pose=tuple(before)))
+                start_pose=tuple(before), duty_factors=duty))
             if stepper.logic.steps == learnt:
                 # Refused, as the node refuses it: the detector does not judge it either, and
                 # once outcome_timeout has passed with no other outcome the step is over; the
@@ -178,3 +195,12 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
         raise RuntimeError(f'the mission stopped in state {stepper.state.value} without a '
                            'result')
     return MissionRun(bool(end.success), end, stepper.logic, goal_steps, falls, refused)
+
+
+def _simulated(simulate, command) -> DamageSimulated:
+    """The answer to a :class:`SimulateDamage`, from ``simulate`` (None: none)."""
+    if simulate is None:
+        return DamageSimulated(command.damage, command.gaits, error='no simulator')
+    gr, fallen = simulate(command.damage, np.asarray(command.gaits, dtype=int))
+    return DamageSimulated(command.damage, command.gaits, tuple(map(tuple, gr)),
+                           tuple(map(bool, fallen)))

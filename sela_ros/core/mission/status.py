@@ -34,7 +34,11 @@ def mission_status(stepper, reward=None):
                       end_pose=vector_text(stepper.pose), fallen=r.fallen,
                       # wall time of the step: choosing, and the gait's round trip
                       decide_ms=_ms(p.t_start, p.t_sent),
-                      execute_ms=_ms(p.t_sent, p.t_outcome))
+                      execute_ms=_ms(p.t_sent, p.t_outcome),
+                      # the prior mean the step was chosen on
+                      prior=stepper.prior)
+        if stepper.self_model is not None:
+            values['self_model'] = stepper.self_model.status()
     if stepper.result is not None:
         values['success'] = stepper.result
     return {k: str(v) for k, v in values.items()}

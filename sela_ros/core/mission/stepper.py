@@ -59,8 +59,10 @@ class MissionStepper:
             its ids, so that no latched outcome of an old command pairs with a new one).
     """
 
-    def __init__(self, sela, config=None, next_id=1):
+    def __init__(self, sela, config=None, next_id=1, self_model=None):
         self.config = config or StepperConfig()
+        # SelfModel (sela_ros.core.learning.self_model) or None: reads each outcome's feet
+        self.self_model = self_model
         self.logic = MissionLogic(sela, self.config.adapt_on_start, self.config.reset_on_fall,
                                   self.config.on_detection)
         self.state = State.IDLE
@@ -97,7 +99,8 @@ class MissionStepper:
             io.OutcomeReceived: self._on_outcome, io.VerdictReceived: self._on_verdict,
             io.AdaptRequested: self._on_adapt, io.ClearRequested: self._on_clear,
             io.ResetDone: self._on_reset_done, io.HoldChanged: self._on_hold,
-            io.CancelRequested: self._on_cancel, io.Tick: self._on_tick}
+            io.CancelRequested: self._on_cancel, io.Tick: self._on_tick,
+            io.DamageSimulated: self._on_damage_simulated}
 
     @property
     def sela(self):
@@ -271,6 +274,7 @@ class MissionStepper:
                                       fallen=event.fallen, true_pose=event.true_pose,
                                       standing_start=event.standing_start)
         out += self._bound_learning()
+        out += self._read_feet(p, event)
         if event.fallen:
             self.failed_steps += 1
             out.append(Report(Level.ERROR, f'step {self.steps} failed: the robot fell or '
@@ -291,6 +295,42 @@ class MissionStepper:
         if p.behavior_id in self._verdicts:
             out += self._verdict(self._verdicts.pop(p.behavior_id))
         return out
+
+    def _read_feet(self, pending, event):
+        """The self-model reads the step's feet; while adapting, a hypothesis no table holds
+        is simulated beside the mission (:class:`~sela_ros.core.mission.stepper_io.
+        SimulateDamage`)."""
+        model = self.self_model
+        if model is None or event.duty_factors is None:
+            return []
+        model.observe(pending.decision.index, event.duty_factors, event.fallen)
+        wanted = model.request(self.sela.priors) if self.logic.adapting else None
+        if wanted is None:
+            return []
+        damage, gaits = wanted
+        return [Report(Level.OK, f'self-model: the feet say {damage}; simulating it on '
+                       f'{len(gaits)} gaits beside the mission'),
+                io.SimulateDamage(damage, tuple(int(g) for g in gaits))]
+
+    def _on_damage_simulated(self, event, now):
+        model = self.self_model
+        if model is None:
+            return []
+        if event.error:
+            model.failed(event.damage)
+            return [Report(Level.WARN, f'self-model: {event.damage} not simulated: '
+                           f'{event.error}')]
+        try:
+            priors = model.install(self.sela.priors, event.damage, event.gaits,
+                                   event.generic_reward, event.fallen)
+        except ValueError as exc:
+            model.failed(event.damage)
+            return [Report(Level.WARN, str(exc))]
+        if priors is self.sela.priors:
+            return []
+        self.sela.priors = priors
+        return [Report(Level.OK, f'self-model: the table of {event.damage} is a damage prior '
+                       f'({len(event.gaits)} gaits simulated, the others inferred)')]
 
     def _on_verdict(self, event, now):
         if self.state is State.VERDICT and event.behavior_id == self.pending.behavior_id:
@@ -336,6 +376,8 @@ class MissionStepper:
     def _on_clear(self, event, now):
         forgotten = len(self.sela.observations[0])
         self.logic.forget(self.config.adapt_on_start)
+        if self.self_model is not None:
+            self.sela.priors = self.self_model.forget(self.sela.priors)
         message = f'forgot {forgotten} observation(s): back to the intact map'
         return [self._save(), Report(Level.WARN, message), Reply(True, message)]
 

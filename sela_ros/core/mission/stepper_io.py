@@ -62,6 +62,21 @@ class OutcomeReceived:
     # observed (x, y, yaw) before the gait, as the outcome says: its generic reward must match
     # it and end_pose; None: not said (the pose the step was planned from is checked instead).
     start_pose: tuple = None
+    # each foot's share of the gait on the ground (the legs' order of the robot); None: not
+    # measured. What the self-model reads (sela_ros.core.learning.self_model).
+    duty_factors: tuple = None
+
+
+@dataclass(frozen=True)
+class DamageSimulated:
+    """The outcomes of a :class:`SimulateDamage`: each gait's generic reward ``(n, k)`` and
+    fall ``(n,)`` on the robot's simulator; ``error``: why there are none."""
+
+    damage: str
+    gaits: tuple
+    generic_reward: tuple = ()
+    fallen: tuple = ()
+    error: str = ''
 
 
 @dataclass(frozen=True)
@@ -138,6 +153,15 @@ class SendGait:
     pose: tuple = None
     waypoint: tuple = None
     candidates: np.ndarray = None
+
+
+@dataclass(frozen=True)
+class SimulateDamage:
+    """Simulate ``damage`` (a damage spec) on the map's ``gaits``, each from a standing
+    start, beside the mission; the answer is a :class:`DamageSimulated` (the self-model)."""
+
+    damage: str
+    gaits: tuple
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,277 @@
+"""The robot's own simulator as a self-model: the legs it has lost, read from its feet.
+
+Each step's outcome says how long each foot touched the ground (its duty factors). A leg that
+never touches over steps whose gaits lean on it on the intact robot (an intact duty factor of
+at least :data:`LEANING`) is lost: on the hexapod a removed leg's foot touches on none of
+them, a leg shortened to 0.3 on about three in four, an intact one on all
+(docs/learning_the_damage.md, "A self-model from the feet"). The legs lost are a damage
+hypothesis that no table may hold (two neighbouring legs, say, with their table left out):
+the self-model simulates it on gaits of the map (those the robot ran, which the table must
+then reproduce, and :func:`~sela_ros.core.learning.table_inference.gait_subset`'s cover of the
+map and its fastest gaits), infers the others
+(:func:`~sela_ros.core.learning.table_inference.infer`) and hands SELA the table as a
+second-tier damage prior: used as any table of the damage library is, only once it best
+explains the steps and has reproduced the robot's standing starts, its inferred gaits never
+chosen. A hypothesis that is one of the tables already there adds nothing.
+
+The simulation costs a simulated gait per gait (``SelfModelConfig.gaits`` of them, 0.05
+core-seconds each on the hexapod); a robot runs it beside the mission and uses the table
+``SelfModelConfig.delay_steps`` steps after the hypothesis, which is how the experiments
+count it (:func:`sela_ros.core.mission.run_mission`). ROS-free, and no simulator here: the
+caller runs it (:class:`~sela_ros.core.mission.stepper_io.SimulateDamage`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sela_ros.core.learning.damage_priors import DamagePriors
+from sela_ros.core.learning.table_inference import gait_subset, infer
+
+#: A gait leans on a leg whose intact duty factor is at least this.
+LEANING = 0.3
+#: A foot whose measured duty factor is below this did not touch the ground.
+NO_CONTACT = 0.02
+#: Steps (that stood, on gaits that lean on the leg) with no contact before a leg is lost.
+MIN_EVIDENCE = 2
+#: The name of a self-model table: this, then the damage it simulated.
+PREFIX = 'self-model '
+
+
+@dataclass(frozen=True)
+class SelfModelConfig:
+    """Attributes:
+        gaits: gaits simulated for a hypothesis besides those the robot ran.
+        covering: of those, how many cover the map (the rest: its fastest gaits).
+        delay_steps: steps from the hypothesis to its table in use (the simulation's wall
+            time on the robot's computer, in steps).
+        first_tier: the table joins the damage priors' first tier (mixed, chosen whenever it
+            best explains the steps); False: the second (chosen only once it has reproduced
+            the robot's standing starts).
+    """
+
+    gaits: int = 300
+    covering: int = 150
+    delay_steps: int = 3
+    first_tier: bool = True
+
+    def __post_init__(self):
+        if not isinstance(self.first_tier, (bool, np.bool_)):
+            raise ValueError(f'self-model first_tier must be true or false, got '
+                             f'{self.first_tier!r}')
+        for name in ('gaits', 'covering', 'delay_steps'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise ValueError(f'self-model {name} must be a whole number >= 0, got {value!r}')
+        if self.gaits < 1:
+            raise ValueError(f'self-model gaits must be >= 1, got {self.gaits}')
+
+
+class LostLegs:
+    """The legs whose feet have not touched the ground where the gaits leaned on them.
+
+    Args:
+        intact_duty: ``(M, L)`` each gait's duty factors on the intact robot (the map's).
+        legs: the ``L`` leg names, in the order of the duty factors.
+    """
+
+    def __init__(self, intact_duty, legs):
+        self.intact_duty = np.asarray(intact_duty, dtype=float)
+        self.legs = tuple(legs)
+        if self.intact_duty.ndim != 2 or self.intact_duty.shape[1] != len(self.legs):
+            raise ValueError(f'intact duty factors {self.intact_duty.shape} for '
+                             f'{len(self.legs)} legs')
+        self.leaned = np.zeros(len(self.legs), int)  # stood steps that leaned on each leg
+        self.touched = np.zeros(len(self.legs), bool)  # its foot touched on one of them
+
+    def observe(self, index, duty_factors, fallen=False) -> None:
+        """One step: gait ``index``'s measured duty factors ``(L,)``; a fall tells nothing
+        (the feet of a tumbling robot)."""
+        duty = np.asarray(duty_factors, dtype=float).reshape(-1)
+        # No foot touched at all: feet that are not measured (a robot without contact
+        # sensing reports zeros), not six legs lost.
+        if fallen or duty.size != len(self.legs) or not np.all(np.isfinite(duty)) \
+                or not duty.any():
+            return
+        lean = self.intact_duty[int(index)] >= LEANING
+        self.leaned += lean
+        self.touched |= lean & (duty >= NO_CONTACT)
+
+    def lost(self) -> tuple:
+        """The legs lost so far (in the order of ``legs``)."""
+        return tuple(leg for leg, n, t in zip(self.legs, self.leaned, self.touched)
+                     if n >= MIN_EVIDENCE and not t)
+
+
+def from_archive(archive, legs, config=None) -> SelfModel:
+    """The self-model of a robot with ``legs`` (names, in the order of its duty factors) over
+    ``archive`` (:class:`~sela_ros.core.storage.Archive`). Raises ValueError for a map whose
+    descriptor holds no duty factors for those legs (a 2-D map: no feet to read)."""
+    from sela_ros.core.learning.damage_priors import params_checksum
+    from sela_ros.core.storage.archive import DUTY_FACTOR_DESCRIPTOR
+
+    legs = tuple(legs)
+    if archive.metadata.get('descriptor_name') != DUTY_FACTOR_DESCRIPTOR \
+            or archive.descriptors.shape[1] != 2 + len(legs):
+        raise ValueError(f'the self-model reads the feet through the map\'s duty factors: '
+                         f'this map\'s descriptor is {archive.metadata.get("descriptor_name")!r} '
+                         f'of {archive.descriptors.shape[1]} dimensions, not the final (x, y) '
+                         f'and {len(legs)} duty factors')
+    return SelfModel(archive.normalised_descriptors(), archive.generic_reward,
+                     archive.descriptors[:, 2:], legs, params_checksum(archive.params),
+                     archive.kernel_sigma, config)
+
+
+def hypothesis(legs) -> str | None:
+    """The damage spec of ``legs`` removed (None: none)."""
+    return ','.join(f'remove:{leg}' for leg in legs) or None
+
+
+def _parts(name) -> frozenset:
+    return frozenset(p.strip() for p in str(name).removeprefix(PREFIX).split(',') if p.strip())
+
+
+class SelfModel:
+    """Reads each step's feet; when they show lost legs that no table holds, asks for that
+    damage to be simulated (:meth:`request`: the caller runs the robot's simulator, beside the
+    mission) and adds the outcomes' table to a SELA's damage priors (:meth:`install`).
+
+    Args:
+        descriptors: ``(M, d)`` the map's normalised descriptors; ``base_gr`` ``(M, k)`` its
+            generic rewards; ``intact_duty`` ``(M, L)`` its duty factors; ``legs`` their names.
+        archive_checksum: the map's (the table's ``DamagePriors.archive_checksum``).
+        sigma: the length of the kernel that infers the gaits not simulated.
+        config: :class:`SelfModelConfig`.
+    """
+
+    def __init__(self, descriptors, base_gr, intact_duty, legs, archive_checksum, sigma,
+                 config: SelfModelConfig | None = None):
+        self.descriptors = np.asarray(descriptors, dtype=float)
+        self.base_gr = np.asarray(base_gr, dtype=float)
+        self.feet = LostLegs(intact_duty, legs)
+        self.archive_checksum = archive_checksum
+        self.sigma = float(sigma)
+        self.config = config or SelfModelConfig()
+        speed = np.hypot(self.base_gr[:, 0], self.base_gr[:, 1])
+        self.candidates = gait_subset(self.descriptors, self.config.gaits, speed,
+                                      self.config.covering)
+        self.run = []  # the gaits the robot ran (in order, once each)
+        self.steps = 0
+        self.requested = None  # the damage being simulated
+        self.installed = None  # the damage whose table is in the priors
+        self.given_up = set()  # damages whose simulation failed
+        self.simulated_gaits = 0  # gaits simulated so far (the cost)
+
+    def observe(self, index, duty_factors, fallen=False) -> None:
+        """One step of the robot: its gait and feet."""
+        self.steps += 1
+        if int(index) not in self.run:
+            self.run.append(int(index))
+        self.feet.observe(index, duty_factors, fallen)
+
+    def request(self, priors: DamagePriors | None):
+        """The simulation to start now, ``(damage, gaits (n,))``, or None: once the feet show
+        lost legs that no table of ``priors`` holds (the self-model's own aside), each
+        hypothesis once. Its outcomes go to :meth:`install`."""
+        damage = hypothesis(self.feet.lost())
+        held = priors is not None and any(
+            _parts(n) == _parts(damage) for n in priors.names if not n.startswith(PREFIX))
+        if damage is None or held or damage in (self.requested, self.installed) \
+                or damage in self.given_up:
+            return None
+        self.requested = damage
+        return damage, np.unique(np.concatenate([self.candidates, np.asarray(self.run, int)]))
+
+    def install(self, priors, damage, gaits, gr, fallen) -> DamagePriors | None:
+        """``priors`` with the table of ``damage`` simulated on ``gaits`` (``gr`` ``(n, k)``,
+        ``fallen`` ``(n,)``) appended to the second tier, in place of an earlier table of the
+        self-model's; ``priors`` itself if ``damage`` is no longer the hypothesis requested
+        (the feet have shown more since). Raises ValueError for outcomes that do not match
+        ``gaits``."""
+        gaits = np.asarray(gaits, dtype=int).reshape(-1)
+        gr = np.asarray(gr, dtype=float)
+        fallen = np.asarray(fallen, dtype=bool).reshape(-1)
+        k = self.base_gr.shape[1]
+        if gr.ndim != 2 or gr.shape[0] != gaits.size or gr.shape[1] < k \
+                or fallen.size != gaits.size or not np.all(np.isfinite(gr[:, :k])) \
+                or not gaits.size or gaits.min() < 0 or gaits.max() >= len(self.base_gr):
+            raise ValueError(f'self-model: {gaits.size} gaits simulated but outcomes '
+                             f'{gr.shape} and {fallen.size} falls, or gaits off the map')
+        if damage != self.requested:
+            return priors
+        self.installed, self.requested = damage, None
+        self.simulated_gaits += gaits.size
+        return self._with_table(priors, damage, gaits, gr[:, :k], fallen)
+
+    def status(self) -> str:
+        """Where it stands, in words: the damage being simulated, the one whose table is in
+        the priors, or that the feet show no leg lost."""
+        if self.requested is not None:
+            return f'simulating {self.requested}'
+        if self.installed is not None:
+            return f'{self.installed} simulated'
+        damage = hypothesis(self.feet.lost())
+        if damage is None:
+            return 'no leg lost'
+        return f'{damage} not simulated' if damage in self.given_up \
+            else f'{damage} held by a table'
+
+    def failed(self, damage) -> None:
+        """The simulation of ``damage`` gave nothing: it is not asked again."""
+        self.given_up.add(damage)
+        if damage == self.requested:
+            self.requested = None
+
+    def forget(self, priors):
+        """Back to no evidence (the robot's learning forgotten): ``priors`` without the
+        self-model's table."""
+        self.feet = LostLegs(self.feet.intact_duty, self.feet.legs)
+        self.run, self.steps = [], 0
+        self.requested = self.installed = None
+        self.given_up = set()
+        return self.forget_table(priors)
+
+    @staticmethod
+    def forget_table(priors):
+        """``priors`` without the self-model's table (None if nothing else is left)."""
+        if priors is None or not any(n.startswith(PREFIX) for n in priors.names):
+            return priors
+        for name in [n for n in priors.names if n.startswith(PREFIX)]:
+            priors = priors.without(name)
+        return priors if len(priors) else None
+
+    def _with_table(self, priors, damage, gaits, gr, fallen) -> DamagePriors:
+        """``priors`` with the table of ``damage`` in place of the self-model's earlier one:
+        the last of the first tier (``config.first_tier``) or of the second."""
+        k = self.base_gr.shape[1]
+        table, table_fallen = infer(self.descriptors, self.base_gr, gaits, gr, fallen,
+                                    self.sigma)
+        simulated = np.zeros(len(self.base_gr), bool)
+        simulated[gaits] = True
+        second = not self.config.first_tier
+        if priors is not None:
+            priors = self.forget_table(priors)
+        if priors is None:
+            return DamagePriors((PREFIX + damage,), table[None], table_fallen[None],
+                                self.archive_checksum, reproduce_only=np.array([second]),
+                                simulated=simulated[None])
+        at = len(priors) if second else len(priors.first_tier())
+        rows = np.zeros((1, *priors.generic_reward.shape[1:]))
+        rows[0, :, :k] = table
+        shape = priors.fallen.shape[1:]
+
+        def put(a, row):
+            return np.concatenate([a[:at], row[None], a[at:]])
+
+        none = np.zeros(shape, int)
+        return DamagePriors(
+            priors.names[:at] + (PREFIX + damage,) + priors.names[at:],
+            put(priors.generic_reward, rows[0]), put(priors.fallen, table_fallen),
+            priors.archive_checksum,
+            None if priors.chained_runs is None else put(np.asarray(priors.chained_runs), none),
+            None if priors.chained_falls is None else put(np.asarray(priors.chained_falls),
+                                                          none),
+            put(priors.second_tier, np.array(second)),
+            put(np.ones((len(priors), *shape), bool) if priors.simulated is None
+                else np.asarray(priors.simulated), simulated))

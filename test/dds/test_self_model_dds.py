@@ -1,0 +1,43 @@
+"""The self-model over DDS: the adapter reads the feet in sim_bridge's outcomes, simulates the
+damage they show in its worker processes while the mission goes on, and uses the table."""
+import pytest
+from test_ros_mission import Watcher
+
+from ros_graph import Client, NodeProcesses
+
+pytestmark = [pytest.mark.dds, pytest.mark.slow]
+
+# Three legs lost, a tripod: no table of the shipped priors holds it.
+TRIPOD = 'remove:front_left,remove:middle_right,remove:rear_left'
+# As the self-model names it (the legs in the robot's order).
+SAID = 'remove:front_left,remove:rear_left,remove:middle_right'
+
+
+@pytest.fixture
+def graph():
+    # Gaits at four times the robot's pace: the mission lasts long enough for the worker
+    # process to start and simulate, as a robot's real gaits leave it time to.
+    nodes = NodeProcesses({'sim_bridge': {'damage': TRIPOD, 'seed': 3, 'real_time_factor': 4.0},
+                           'sela_adapter': {'self_model.gaits': 40}})
+    client = Client()
+    yield nodes, client
+    client.close()
+    nodes.stop()
+
+
+def test_the_feet_name_the_legs_lost_and_their_simulation_becomes_a_prior(graph):
+    nodes, client = graph
+    watcher = Watcher(client)
+    watcher.send_goal(2.0, -1.5)
+    client.spin_until(lambda: watcher.get_result(), 400, 'the end of the mission')
+    said = [s.values.get('self_model') for s in watcher.steps]
+    assert said[0] == 'no leg lost', (said, nodes.logs())
+    assert f'simulating {SAID}' in said, (said, nodes.logs())
+    first = said.index(f'simulating {SAID}')
+    assert f'{SAID} simulated' in said[first:], (said, nodes.logs())
+    # Once simulated, the table is a damage prior the choice may use: it is, as soon as it
+    # explains the steps (the robot's own damage, from its standing start).
+    priors = [s.values.get('prior') for s in watcher.steps]
+    assert f'self-model {SAID}' in priors, (priors, nodes.logs())
+    assert all(n.startswith(('intact', 'remove', 'shorten', 'block', 'weaken', 'mixture',
+                             'self-model')) for n in priors)
