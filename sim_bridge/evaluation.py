@@ -52,8 +52,9 @@ def evaluate_gait(params, damage='intact', dt: float = SIM_DEFAULTS['dt'],
 
 
 def simulate_gaits(params, damage, settings=None, robot=None):
-    """``(generic rewards (n, 3), fallen (n,))`` of each gait of ``params`` ``(n, P)`` from a
-    fresh standing start on ``damage``: a damage hypothesis's outcomes for the self-model
+    """``(generic rewards (n, 3), fallen (n,), duty factors (n, legs))`` of each gait of
+    ``params`` ``(n, P)`` from a fresh standing start on ``damage``: a damage hypothesis's
+    outcomes for the self-model
     (:mod:`sela_ros.core.learning.self_model`). ``settings``: the map's simulator settings
     (``dt``, ``gait_duration``, ``solver_iterations``; None: the defaults)."""
     import numpy as np
@@ -61,8 +62,10 @@ def simulate_gaits(params, damage, settings=None, robot=None):
     settings = {**SIM_DEFAULTS, **(settings or {})}
     outcomes = [evaluate_gait(p, damage, settings['dt'], settings['gait_duration'],
                               settings['solver_iterations'], robot) for p in params]
+    legs = len(get_robot(robot).legs)
     return (np.array([o.generic_reward for o in outcomes], dtype=float).reshape(-1, 3),
-            np.array([o.fallen for o in outcomes], dtype=bool))
+            np.array([o.fallen for o in outcomes], dtype=bool),
+            np.array([o.duty_factors for o in outcomes], dtype=float).reshape(-1, legs))
 
 
 def worker_pool(workers: int) -> ProcessPoolExecutor:

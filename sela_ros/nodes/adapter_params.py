@@ -92,17 +92,17 @@ PARAMETERS = (
          'spread of each weight; none = no mixture, the one table that best explains the '
          'steps', low=0.0, high=1e6, word=NONE, read_only=True),
     Spec('self_model.enabled', True, "read the robot's feet (each outcome's duty factors): "
-         'legs that never touch the ground where the gaits lean on them are a damage that the '
-         "robot's simulator (sim_bridge) plays beside the mission on self_model.gaits gaits, "
-         'and its table is a damage prior once it reproduces the steps '
-         '(docs/learning_the_damage.md); needs a map with duty factors (the 8-D map)',
-         read_only=True),
+         'legs whose feet never touch the ground, over two steps or more whose gaits lean on '
+         "them, are a damage that the robot's simulator (sim_bridge) plays beside the "
+         'mission on self_model.gaits gaits (a leg the others tilt off the ground is told '
+         'apart first), and its table is a damage prior (docs/learning_the_damage.md); '
+         'needs a map with duty factors (the 8-D map)', read_only=True),
     Spec('self_model.gaits', SelfModelConfig.gaits, 'gaits of the map simulated for a '
          'damage the feet show (the gaits the robot ran besides), the others inferred; each '
          'costs one simulated gait (about 0.05 s of a core on the hexapod)', low=1,
          high=10**6, read_only=True),
-    Spec('self_model.workers', 1, 'processes that simulate beside the mission (started at '
-         'the first damage the feet show)', low=1, high=256, read_only=True),
+    Spec('self_model.workers', 1, 'processes that simulate beside the mission, one for each '
+         'damage the feet show (started at the first)', low=1, high=256, read_only=True),
     Spec('max_steps', StepperConfig.max_steps, 'steps before a mission is declared failed',
          low=1, high=10**9),
     Spec('max_waypoints', 1000, 'goals in one mission at most (goal_path poses, or '

@@ -7,9 +7,17 @@ The ``sela_adapter`` node's stepper asks for a damage hypothesis to be simulated
 the answer back as a :class:`~sela_ros.core.mission.stepper_io.DamageSimulated` that the
 node's timer feeds to the stepper. No callback waits on it.
 """
-import numpy as np
-
 from sela_ros.core.mission import stepper_io as io
+
+
+def _answer(command, params, settings, robot):
+    """A worker's job: :func:`~sela_ros.core.mission.answer_request` on the robot's simulator
+    (``params``: the archive's gaits)."""
+    from sela_ros.core.mission import answer_request
+    from sim_bridge.evaluation import simulate_gaits
+
+    return answer_request(command, lambda damage, gaits: simulate_gaits(
+        params[gaits], damage, settings, robot))
 
 
 class SelfModelSimulations:
@@ -18,26 +26,23 @@ class SelfModelSimulations:
         settings: the archive's simulator settings (``dt``, ``gait_duration``, ...).
         robot: what finds the robot's description in a worker (``sim_bridge.robots.
             robot_spec``).
-        workers: processes at most.
+        workers: processes at most (one answers each request).
     """
 
     def __init__(self, params, settings, robot, workers=1):
         self.params, self.settings, self.robot = params, dict(settings), robot
         self.workers = max(1, int(workers))
         self._pool = None
-        self._running = []  # (SimulateDamage, [futures])
+        self._running = []  # (SimulateDamage, future)
 
     def submit(self, command: io.SimulateDamage) -> None:
-        """Start simulating ``command``'s gaits, split among the workers."""
-        from sim_bridge.evaluation import simulate_gaits, worker_pool
+        """Start answering ``command`` in a worker."""
+        from sim_bridge.evaluation import worker_pool
 
         if self._pool is None:
             self._pool = worker_pool(self.workers)
-        gaits = np.asarray(command.gaits, dtype=int)
-        chunks = [c for c in np.array_split(gaits, self.workers) if c.size]
-        self._running.append((command, [
-            self._pool.submit(simulate_gaits, self.params[c], command.damage, self.settings,
-                              self.robot) for c in chunks]))
+        self._running.append((command, self._pool.submit(
+            _answer, command, self.params, self.settings, self.robot)))
 
     @property
     def busy(self) -> int:
@@ -47,26 +52,20 @@ class SelfModelSimulations:
     def poll(self) -> list:
         """The answers of the simulations that have finished (a failure's with its reason)."""
         out = []
-        for item in [r for r in self._running if all(f.done() for f in r[1])]:
+        for item in [r for r in self._running if r[1].done()]:
             self._running.remove(item)
-            command, futures = item
+            command, future = item
             try:
-                parts = [f.result() for f in futures]
+                out.append(future.result())
             except Exception as exc:  # a worker that died, a robot it cannot build
                 out.append(io.DamageSimulated(command.damage, command.gaits,
                                               error=f'{type(exc).__name__}: {exc}'))
-                continue
-            gr = np.concatenate([p[0] for p in parts])
-            fallen = np.concatenate([p[1] for p in parts])
-            out.append(io.DamageSimulated(command.damage, command.gaits,
-                                          tuple(map(tuple, gr)), tuple(map(bool, fallen))))
         return out
 
     def cancel(self) -> None:
         """Drop every simulation under way (the archive changed: its gaits are others)."""
-        for _, futures in self._running:
-            for f in futures:
-                f.cancel()
+        for _, future in self._running:
+            future.cancel()
         self._running = []
 
     def close(self) -> None:

@@ -22,6 +22,7 @@ caller runs it (:class:`~sela_ros.core.mission.stepper_io.SimulateDamage`).
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +36,11 @@ LEANING = 0.3
 NO_CONTACT = 0.02
 #: Steps (that stood, on gaits that lean on the leg) with no contact before a leg is lost.
 MIN_EVIDENCE = 2
+#: A smaller damage explains a leg's missing contacts if, simulated on the gaits the robot
+#: ran, that leg's foot missed the ground in at least this share of the steps where it
+#: leaned on it and did not touch (two legs gone tilt the body: on the hexapod without its
+#: left middle and rear legs, the right front foot touches in none of the first five gaits).
+EXPLAINED = 0.8
 #: The name of a self-model table: this, then the damage it simulated.
 PREFIX = 'self-model '
 
@@ -83,7 +89,8 @@ class LostLegs:
             raise ValueError(f'intact duty factors {self.intact_duty.shape} for '
                              f'{len(self.legs)} legs')
         self.leaned = np.zeros(len(self.legs), int)  # stood steps that leaned on each leg
-        self.touched = np.zeros(len(self.legs), bool)  # its foot touched on one of them
+        self.touched = np.zeros(len(self.legs), bool)  # its foot touched in some step
+        self.seen = {}  # gait -> its measured duty factors (the latest, of a step that stood)
 
     def observe(self, index, duty_factors, fallen=False) -> None:
         """One step: gait ``index``'s measured duty factors ``(L,)``; a fall tells nothing
@@ -94,14 +101,52 @@ class LostLegs:
         if fallen or duty.size != len(self.legs) or not np.all(np.isfinite(duty)) \
                 or not duty.any():
             return
-        lean = self.intact_duty[int(index)] >= LEANING
-        self.leaned += lean
-        self.touched |= lean & (duty >= NO_CONTACT)
+        self.leaned += self.intact_duty[int(index)] >= LEANING
+        self.touched |= duty >= NO_CONTACT  # a foot that touched once is there
+        self.seen[int(index)] = duty
 
     def lost(self) -> tuple:
-        """The legs lost so far (in the order of ``legs``)."""
+        """The legs lost so far (in the order of ``legs``): those whose foot never touched,
+        over :data:`MIN_EVIDENCE` steps or more that leaned on them."""
         return tuple(leg for leg, n, t in zip(self.legs, self.leaned, self.touched)
                      if n >= MIN_EVIDENCE and not t)
+
+    def unexplained(self, leg, gaits, simulated_duty) -> float:
+        """The share of the steps whose gait leans on ``leg`` and whose foot did not touch
+        in which the damage simulated (``simulated_duty`` ``(n, L)`` of ``gaits``) does not
+        keep that foot off the ground either; 0 when there are none."""
+        i = self.legs.index(leg)
+        missed = [k for k, g in enumerate(gaits) if int(g) in self.seen
+                  and self.intact_duty[int(g), i] >= LEANING and self.seen[int(g)][i] < NO_CONTACT]
+        if not missed:
+            return 0.0
+        duty = np.asarray(simulated_duty, dtype=float)
+        return float(np.mean(duty[missed, i] >= NO_CONTACT))
+
+
+def alternatives(damage) -> tuple:
+    """The smaller damages to weigh against ``damage`` before simulating its table: each
+    with one of its legs back (none for a single leg)."""
+    legs = legs_of(damage)
+    if len(legs) < 2:
+        return ()
+    return tuple(hypothesis(tuple(x for x in legs if x != leg)) for leg in legs)
+
+
+def choose(feet: LostLegs, damage, simulate) -> str:
+    """``damage``, or a smaller damage that explains the feet as well: one leg back whose
+    missing contacts that damage's simulation reproduces (:data:`EXPLAINED`; of several, the
+    one that reproduces them most), each simulated on the gaits the robot ran
+    (``simulate(damage, gaits) -> (gr, fallen, duty)``). A leg whose foot misses the ground
+    because the body tilts on the others is not lost."""
+    gaits = np.array(sorted(feet.seen), dtype=int)
+    best, best_share = damage, 1.0 - EXPLAINED
+    for smaller in alternatives(damage) if gaits.size else ():
+        back = (set(legs_of(damage)) - set(legs_of(smaller))).pop()
+        share = feet.unexplained(back, gaits, simulate(smaller, gaits)[2])
+        if share <= best_share:
+            best, best_share = smaller, share
+    return best
 
 
 def from_archive(archive, legs, config=None) -> SelfModel:
@@ -126,6 +171,11 @@ def from_archive(archive, legs, config=None) -> SelfModel:
 def hypothesis(legs) -> str | None:
     """The damage spec of ``legs`` removed (None: none)."""
     return ','.join(f'remove:{leg}' for leg in legs) or None
+
+
+def legs_of(damage) -> tuple:
+    """The legs a :func:`hypothesis` removes."""
+    return tuple(part.removeprefix('remove:') for part in (damage or '').split(',') if part)
 
 
 def _parts(name) -> frozenset:
@@ -161,6 +211,7 @@ class SelfModel:
         self.requested = None  # the damage being simulated
         self.installed = None  # the damage whose table is in the priors
         self.given_up = set()  # damages whose simulation failed
+        self.answered = set()  # damages requested and answered (perhaps by a smaller one)
         self.simulated_gaits = 0  # gaits simulated so far (the cost)
 
     def observe(self, index, duty_factors, fallen=False) -> None:
@@ -171,22 +222,25 @@ class SelfModel:
         self.feet.observe(index, duty_factors, fallen)
 
     def request(self, priors: DamagePriors | None):
-        """The simulation to start now, ``(damage, gaits (n,))``, or None: once the feet show
-        lost legs that no table of ``priors`` holds (the self-model's own aside), each
-        hypothesis once. Its outcomes go to :meth:`install`."""
+        """The simulation to start now, ``(damage, gaits (n,), feet)``, or None: once the feet
+        show lost legs that no table of ``priors`` holds (the self-model's own aside), each
+        hypothesis once. ``feet``: a copy of the evidence, for :func:`choose` (which may
+        settle on a smaller damage). Its outcomes go to :meth:`install`."""
         damage = hypothesis(self.feet.lost())
         held = priors is not None and any(
             _parts(n) == _parts(damage) for n in priors.names if not n.startswith(PREFIX))
         if damage is None or held or damage in (self.requested, self.installed) \
-                or damage in self.given_up:
+                or damage in self.given_up or damage in self.answered:
             return None
         self.requested = damage
-        return damage, np.unique(np.concatenate([self.candidates, np.asarray(self.run, int)]))
+        return (damage, np.unique(np.concatenate([self.candidates, np.asarray(self.run, int)])),
+                copy.deepcopy(self.feet))
 
-    def install(self, priors, damage, gaits, gr, fallen) -> DamagePriors | None:
+    def install(self, priors, damage, gaits, gr, fallen, asked=None) -> DamagePriors | None:
         """``priors`` with the table of ``damage`` simulated on ``gaits`` (``gr`` ``(n, k)``,
-        ``fallen`` ``(n,)``) appended to the second tier, in place of an earlier table of the
-        self-model's; ``priors`` itself if ``damage`` is no longer the hypothesis requested
+        ``fallen`` ``(n,)``), in place of an earlier table of the self-model's
+        (:meth:`_with_table`); ``asked``: the damage requested, if :func:`choose` settled on
+        ``damage`` instead. ``priors`` itself if the request is no longer the hypothesis
         (the feet have shown more since). Raises ValueError for outcomes that do not match
         ``gaits``."""
         gaits = np.asarray(gaits, dtype=int).reshape(-1)
@@ -198,8 +252,10 @@ class SelfModel:
                 or not gaits.size or gaits.min() < 0 or gaits.max() >= len(self.base_gr):
             raise ValueError(f'self-model: {gaits.size} gaits simulated but outcomes '
                              f'{gr.shape} and {fallen.size} falls, or gaits off the map')
-        if damage != self.requested:
+        asked = damage if asked is None else asked
+        if asked != self.requested:
             return priors
+        self.answered.add(asked)
         self.installed, self.requested = damage, None
         self.simulated_gaits += gaits.size
         return self._with_table(priors, damage, gaits, gr[:, :k], fallen)
@@ -229,7 +285,7 @@ class SelfModel:
         self.feet = LostLegs(self.feet.intact_duty, self.feet.legs)
         self.run, self.steps = [], 0
         self.requested = self.installed = None
-        self.given_up = set()
+        self.given_up, self.answered = set(), set()
         return self.forget_table(priors)
 
     @staticmethod

@@ -30,6 +30,7 @@ import numpy as np
 
 from sela_ros.core.detection import DamageDetector, DetectorConfig
 from sela_ros.core.geometry import quaternion_to_yaw, yaw_to_quaternion
+from sela_ros.core.learning.self_model import choose
 from sela_ros.core.mission.stepper import MissionStepper
 from sela_ros.core.mission.stepper_io import (
     DamageSimulated,
@@ -109,10 +110,11 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
         detect: run the damage detector (False: adaptation only as ``adapt_on_start``).
         self_model: a :class:`~sela_ros.core.learning.self_model.SelfModel` that reads each
             step's feet (``env.last_execution.duty_factors``); None: none.
-        simulate: ``(damage, gaits) -> (generic rewards (n, k), fallen (n,))``, the robot's
-            simulator, for the self-model's hypotheses: run here at once, its answer given to
-            the stepper ``self_model.config.delay_steps`` gaits later (the time it takes a
-            robot beside its mission).
+        simulate: ``(damage, gaits) -> (generic rewards (n, k), fallen (n,), duty factors
+            (n, legs))``, the robot's simulator, for the self-model's hypotheses
+            (:func:`answer_request`): run here at once, its answer given to the stepper
+            ``self_model.config.delay_steps`` gaits later (the time it takes a robot beside
+            its mission).
     """
     config = stepper_config or StepperConfig()
     stepper = MissionStepper(sela, config, self_model=self_model)
@@ -144,8 +146,9 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
             except PlanningError as exc:
                 events.append(PlanReceived(command.step, command.start, None, str(exc)))
         elif isinstance(command, SimulateDamage):
-            simulated.append((stepper.logic.steps + self_model.config.delay_steps,
-                              _simulated(simulate, command)))
+            answer = DamageSimulated(command.damage, command.gaits, error='no simulator') \
+                if simulate is None else answer_request(command, simulate)
+            simulated.append((stepper.logic.steps + self_model.config.delay_steps, answer))
         elif isinstance(command, SendGait):
             for due, answer in [s for s in simulated if s[0] <= stepper.logic.steps]:
                 simulated.remove((due, answer))
@@ -197,10 +200,14 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
     return MissionRun(bool(end.success), end, stepper.logic, goal_steps, falls, refused)
 
 
-def _simulated(simulate, command) -> DamageSimulated:
-    """The answer to a :class:`SimulateDamage`, from ``simulate`` (None: none)."""
-    if simulate is None:
-        return DamageSimulated(command.damage, command.gaits, error='no simulator')
-    gr, fallen = simulate(command.damage, np.asarray(command.gaits, dtype=int))
-    return DamageSimulated(command.damage, command.gaits, tuple(map(tuple, gr)),
-                           tuple(map(bool, fallen)))
+def answer_request(command: SimulateDamage, simulate) -> DamageSimulated:
+    """The answer to a self-model's :class:`SimulateDamage`: the damage the feet settle on
+    (:func:`~sela_ros.core.learning.self_model.choose`: perhaps a smaller one), simulated on
+    the gaits asked for. ``simulate(damage, gaits) -> (gr, fallen, duty)``. The node runs it
+    in a worker process, :func:`run_mission` here."""
+    damage = command.damage if command.feet is None else choose(command.feet, command.damage,
+                                                                 simulate)
+    gr, fallen, _ = simulate(damage, np.asarray(command.gaits, dtype=int))
+    return DamageSimulated(damage, command.gaits, tuple(map(tuple, np.asarray(gr, float))),
+                           tuple(map(bool, fallen)),
+                           asked=command.damage if damage != command.damage else '')

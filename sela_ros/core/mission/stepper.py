@@ -307,30 +307,32 @@ class MissionStepper:
         wanted = model.request(self.sela.priors) if self.logic.adapting else None
         if wanted is None:
             return []
-        damage, gaits = wanted
+        damage, gaits, feet = wanted
         return [Report(Level.OK, f'self-model: the feet say {damage}; simulating it on '
                        f'{len(gaits)} gaits beside the mission'),
-                io.SimulateDamage(damage, tuple(int(g) for g in gaits))]
+                io.SimulateDamage(damage, tuple(int(g) for g in gaits), feet)]
 
     def _on_damage_simulated(self, event, now):
         model = self.self_model
         if model is None:
             return []
+        asked = event.asked or event.damage
         if event.error:
-            model.failed(event.damage)
-            return [Report(Level.WARN, f'self-model: {event.damage} not simulated: '
-                           f'{event.error}')]
+            model.failed(asked)
+            return [Report(Level.WARN, f'self-model: {asked} not simulated: {event.error}')]
         try:
             priors = model.install(self.sela.priors, event.damage, event.gaits,
-                                   event.generic_reward, event.fallen)
+                                   event.generic_reward, event.fallen, asked)
         except ValueError as exc:
-            model.failed(event.damage)
+            model.failed(asked)
             return [Report(Level.WARN, str(exc))]
         if priors is self.sela.priors:
             return []
         self.sela.priors = priors
+        instead = f' (the feet said {asked}: a leg the others tilt off the ground)' \
+            if asked != event.damage else ''
         return [Report(Level.OK, f'self-model: the table of {event.damage} is a damage prior '
-                       f'({len(event.gaits)} gaits simulated, the others inferred)')]
+                       f'({len(event.gaits)} gaits simulated, the others inferred){instead}')]
 
     def _on_verdict(self, event, now):
         if self.state is State.VERDICT and event.behavior_id == self.pending.behavior_id:

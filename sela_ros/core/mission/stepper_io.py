@@ -77,6 +77,7 @@ class DamageSimulated:
     generic_reward: tuple = ()
     fallen: tuple = ()
     error: str = ''
+    asked: str = ''  # the damage requested, if the feet settled on a smaller one ('': the same)
 
 
 @dataclass(frozen=True)
@@ -158,10 +159,13 @@ class SendGait:
 @dataclass(frozen=True)
 class SimulateDamage:
     """Simulate ``damage`` (a damage spec) on the map's ``gaits``, each from a standing
-    start, beside the mission; the answer is a :class:`DamageSimulated` (the self-model)."""
+    start, beside the mission; the answer is a :class:`DamageSimulated` (the self-model:
+    :func:`sela_ros.core.mission.answer_request` runs it). ``feet``: the self-model's
+    evidence (``LostLegs``), which may settle on a smaller damage first."""
 
     damage: str
     gaits: tuple
+    feet: object = None
 
 
 @dataclass(frozen=True)
