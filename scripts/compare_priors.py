@@ -116,7 +116,7 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
            **{f'selfmodel-{g}-{d}{t}': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                                         'gp.mean.affine': 'none',
                                         'self_model': (g, g // 2, d, not t)}
-              for g in (300, 600) for d in (0, 3) for t in ('', '-second')},
+              for g in (300, 600) for d in (0, 3, 5) for t in ('', '-second')},
            'alpha-0.0': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                          'gp.mean.affine': 'none', 'acquisition.ucb.alpha': 0.0},
            **{f'caution-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': v,

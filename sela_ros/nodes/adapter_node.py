@@ -292,8 +292,8 @@ class SelaAdapter(Node):
             self.simulations.close()
             self.simulations = None
         model, robot, why_not = adapter_support.self_model(self.values, archive)
-        if why_not:
-            self.get_logger().warn(why_not)
+        if why_not:  # a 2-D map, a robot the simulator cannot build: SELA as without it
+            self.get_logger().info(why_not)
         if model is not None:
             self.simulations = SelfModelSimulations(archive.params, archive.simulator_settings,
                                                     robot, self.values['self_model.workers'])

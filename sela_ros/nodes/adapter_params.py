@@ -99,10 +99,12 @@ PARAMETERS = (
          'needs a map with duty factors (the 8-D map)', read_only=True),
     Spec('self_model.gaits', SelfModelConfig.gaits, 'gaits of the map simulated for a '
          'damage the feet show (the gaits the robot ran besides), the others inferred; each '
-         'costs one simulated gait (about 0.05 s of a core on the hexapod)', low=1,
+         'costs one simulated gait (about 0.05 s of a core on the hexapod: 600 take 15 s on '
+         'two workers)', low=1,
          high=10**6, read_only=True),
-    Spec('self_model.workers', 1, 'processes that simulate beside the mission, one for each '
-         'damage the feet show (started at the first)', low=1, high=256, read_only=True),
+    Spec('self_model.workers', 2, 'processes that simulate beside the mission, sharing each '
+         "damage's gaits (started at the first damage the feet show)", low=1, high=256,
+         read_only=True),
     Spec('max_steps', StepperConfig.max_steps, 'steps before a mission is declared failed',
          low=1, high=10**9),
     Spec('max_waypoints', 1000, 'goals in one mission at most (goal_path poses, or '

@@ -15,8 +15,9 @@ explains the steps and has reproduced the robot's standing starts, its inferred 
 chosen. A hypothesis that is one of the tables already there adds nothing.
 
 The simulation costs a simulated gait per gait (``SelfModelConfig.gaits`` of them, 0.05
-core-seconds each on the hexapod); a robot runs it beside the mission and uses the table
-``SelfModelConfig.delay_steps`` steps after the hypothesis, which is how the experiments
+core-seconds each on the hexapod: 30 core-seconds for 600); a robot runs it beside the
+mission and uses the table ``SelfModelConfig.delay_steps`` steps after the hypothesis, which is
+how the experiments
 count it (:func:`sela_ros.core.mission.run_mission`). ROS-free, and no simulator here: the
 caller runs it (:class:`~sela_ros.core.mission.stepper_io.SimulateDamage`).
 """
@@ -50,16 +51,17 @@ class SelfModelConfig:
     """Attributes:
         gaits: gaits simulated for a hypothesis besides those the robot ran.
         covering: of those, how many cover the map (the rest: its fastest gaits).
-        delay_steps: steps from the hypothesis to its table in use (the simulation's wall
-            time on the robot's computer, in steps).
+        delay_steps: steps from the hypothesis to its table in use, in the experiments: the
+            simulation's wall time on the robot's computer, in steps (600 gaits at 0.05
+            core-seconds each on two cores, 15 s: five gaits of 3 s).
         first_tier: the table joins the damage priors' first tier (mixed, chosen whenever it
             best explains the steps); False: the second (chosen only once it has reproduced
             the robot's standing starts).
     """
 
-    gaits: int = 300
-    covering: int = 150
-    delay_steps: int = 3
+    gaits: int = 600
+    covering: int = 300
+    delay_steps: int = 5
     first_tier: bool = True
 
     def __post_init__(self):

@@ -200,14 +200,27 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
     return MissionRun(bool(end.success), end, stepper.logic, goal_steps, falls, refused)
 
 
-def answer_request(command: SimulateDamage, simulate) -> DamageSimulated:
-    """The answer to a self-model's :class:`SimulateDamage`: the damage the feet settle on
-    (:func:`~sela_ros.core.learning.self_model.choose`: perhaps a smaller one), simulated on
-    the gaits asked for. ``simulate(damage, gaits) -> (gr, fallen, duty)``. The node runs it
-    in a worker process, :func:`run_mission` here."""
-    damage = command.damage if command.feet is None else choose(command.feet, command.damage,
-                                                                 simulate)
-    gr, fallen, _ = simulate(damage, np.asarray(command.gaits, dtype=int))
+def settle_request(command: SimulateDamage, simulate) -> str:
+    """The damage a self-model's :class:`SimulateDamage` settles on: the one asked for, or a
+    smaller one that explains the feet as well
+    (:func:`~sela_ros.core.learning.self_model.choose`), from the gaits the robot ran
+    simulated on each (``simulate(damage, gaits) -> (gr, fallen, duty)``)."""
+    return command.damage if command.feet is None else choose(command.feet, command.damage,
+                                                              simulate)
+
+
+def simulated_answer(command: SimulateDamage, damage, gr, fallen) -> DamageSimulated:
+    """The answer to ``command``: ``damage`` (:func:`settle_request`'s) simulated on its
+    gaits, ``gr`` ``(n, k)`` and ``fallen`` ``(n,)``."""
     return DamageSimulated(damage, command.gaits, tuple(map(tuple, np.asarray(gr, float))),
                            tuple(map(bool, fallen)),
                            asked=command.damage if damage != command.damage else '')
+
+
+def answer_request(command: SimulateDamage, simulate) -> DamageSimulated:
+    """The answer to a self-model's :class:`SimulateDamage`, in one go: the damage it
+    settles on (:func:`settle_request`) simulated on the gaits asked for. The node runs the
+    same two parts in its worker processes, :func:`run_mission` here."""
+    damage = settle_request(command, simulate)
+    gr, fallen, _ = simulate(damage, np.asarray(command.gaits, dtype=int))
+    return simulated_answer(command, damage, gr, fallen)

@@ -99,7 +99,8 @@ def test_without_a_simulator_the_mission_goes_on_and_the_damage_is_not_asked_aga
     descriptors, gr, duty, damaged = _world()
     archive = SimpleNamespace(params=np.zeros((len(gr), 36)), generic_reward=gr,
                               kernel_sigma=0.3, normalised_descriptors=lambda: descriptors)
-    model = SelfModel(descriptors, gr, duty, LEGS, 'sum', 0.3, SelfModelConfig(gaits=50))
+    model = SelfModel(descriptors, gr, duty, LEGS, 'sum', 0.3,
+                      SelfModelConfig(gaits=50, delay_steps=0))
     run = run_mission(_Robot(damaged, duty), make_sela(archive, {'planner.lookahead': 0.3}),
                       [(1.0, 0.0)], straight_line_planner,
                       stepper_config=StepperConfig(max_steps=60, adapt_on_start=True),
