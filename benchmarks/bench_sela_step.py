@@ -168,7 +168,7 @@ def self_model_priors(pair='remove:front_left,remove:middle_left', seed=0):
         feet[lost] = 0.0
         model.observe(g, feet)
         wanted = wanted or model.request(priors)
-    damage, gaits = wanted
+    damage, gaits, _ = wanted
     gaits = gaits[known[gaits]]  # those the pair's table simulated
     t0 = time.perf_counter()
     out = model.install(priors, damage, gaits, shipped.generic_reward[truth, gaits],
