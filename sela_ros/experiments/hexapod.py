@@ -514,7 +514,7 @@ def make_self_model(archive, robot, config):
         return simulate_gaits(archive.params[gaits], damage, archive.simulator_settings, robot)
 
     try:
-        return from_archive(archive, robot.legs, config), simulate
+        return from_archive(archive, robot.legs, config, robot.vocabulary.kinds), simulate
     except ValueError:  # a map with no duty factors (2-D): no feet to read
         return None
 

@@ -72,8 +72,10 @@ def self_model(values, archive):
         from sim_bridge.robots import get_robot, robot_of, robot_spec
 
         robot = get_robot(robot_of(archive.metadata))
-        model = from_archive(archive, robot.legs, SelfModelConfig(
-            gaits=int(values['self_model.gaits']), covering=int(values['self_model.gaits']) // 2))
+        gaits = int(values['self_model.gaits'])
+        model = from_archive(archive, robot.legs, SelfModelConfig(gaits=gaits,
+                                                                  covering=gaits // 2),
+                             robot.vocabulary.kinds)
         return model, robot_spec(robot), ''
     except (ImportError, ValueError) as exc:
         return None, None, f'no self-model: {exc}'

@@ -151,13 +151,17 @@ def choose(feet: LostLegs, damage, simulate) -> str:
     return best
 
 
-def from_archive(archive, legs, config=None) -> SelfModel:
+def from_archive(archive, legs, config=None, kinds=('remove',)) -> SelfModel:
     """The self-model of a robot with ``legs`` (names, in the order of its duty factors) over
-    ``archive`` (:class:`~sela_ros.core.storage.Archive`). Raises ValueError for a map whose
-    descriptor holds no duty factors for those legs (a 2-D map: no feet to read)."""
+    ``archive`` (:class:`~sela_ros.core.storage.Archive`); ``kinds``: the damage kinds its
+    simulator takes. Raises ValueError for a robot whose simulator cannot remove a leg, or a
+    map whose descriptor holds no duty factors for those legs (a 2-D map: no feet to read)."""
     from sela_ros.core.learning.damage_priors import params_checksum
     from sela_ros.core.storage.archive import DUTY_FACTOR_DESCRIPTOR
 
+    if 'remove' not in kinds:
+        raise ValueError("the self-model simulates legs removed, and this robot's simulator "
+                         f"takes no damage kind 'remove' (it takes {', '.join(kinds)})")
     legs = tuple(legs)
     if archive.metadata.get('descriptor_name') != DUTY_FACTOR_DESCRIPTOR \
             or archive.descriptors.shape[1] != 2 + len(legs):

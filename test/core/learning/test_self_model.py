@@ -256,3 +256,24 @@ def test_a_leg_the_others_tilt_off_the_ground_is_not_lost():
     upright = _simulator_of_feet(duty, tilts=False)
     assert choose(feet, damage, upright) == damage
     assert choose(feet, 'remove:a', upright) == 'remove:a'  # a single leg: nothing smaller
+
+
+def test_a_map_without_feet_or_a_robot_that_cannot_lose_a_leg_has_no_self_model():
+    from types import SimpleNamespace
+
+    from sela_ros.core.learning.self_model import from_archive
+
+    descriptors, gr, _ = _map()
+    archive = SimpleNamespace(metadata={'descriptor_name': 'final_xy_duty_factors'},
+                              descriptors=descriptors, params=np.zeros((len(gr), 4)),
+                              generic_reward=gr, kernel_sigma=0.3,
+                              normalised_descriptors=lambda: descriptors)
+    model = from_archive(archive, LEGS)
+    assert model.feet.legs == LEGS and model.status() == 'no leg lost'
+    with pytest.raises(ValueError, match="no damage kind 'remove'"):
+        from_archive(archive, LEGS, kinds=('intact', 'shorten'))
+    with pytest.raises(ValueError, match='duty factors'):
+        from_archive(archive, LEGS[:3])
+    flat = SimpleNamespace(**{**vars(archive), 'metadata': {'descriptor_name': 'final_xy'}})
+    with pytest.raises(ValueError, match='duty factors'):
+        from_archive(flat, LEGS)
