@@ -213,7 +213,6 @@ class SelfModel:
         self.candidates = gait_subset(self.descriptors, self.config.gaits, speed,
                                       self.config.covering)
         self.run = []  # the gaits the robot ran (in order, once each)
-        self.steps = 0
         self.requested = None  # the damage being simulated
         self.installed = None  # the damage whose table is in the priors
         self.given_up = set()  # damages whose simulation failed
@@ -222,7 +221,6 @@ class SelfModel:
 
     def observe(self, index, duty_factors, fallen=False) -> None:
         """One step of the robot: its gait and feet."""
-        self.steps += 1
         if int(index) not in self.run:
             self.run.append(int(index))
         self.feet.observe(index, duty_factors, fallen)
@@ -289,7 +287,7 @@ class SelfModel:
         """Back to no evidence (the robot's learning forgotten): ``priors`` without the
         self-model's table."""
         self.feet = LostLegs(self.feet.intact_duty, self.feet.legs)
-        self.run, self.steps = [], 0
+        self.run = []
         self.requested = self.installed = None
         self.given_up, self.answered = set(), set()
         return self.forget_table(priors)
