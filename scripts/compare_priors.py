@@ -117,6 +117,11 @@ METHODS = {'select': {'priors.weights.sd': 'none'}, 'mixture': {'priors.weights.
                                         'gp.mean.affine': 'none',
                                         'self_model': (g, g // 2, d, not t)}
               for g in (300, 600) for d in (0, 3, 5) for t in ('', '-second')},
+           **{f'selfmodel-600-5-refine{r}': {'priors.weights.sd': 1.0,
+                                             'acquisition.caution': 0.15,
+                                             'gp.mean.affine': 'none',
+                                             'self_model': (600, 300, 5, True, r)}
+              for r in (0, 100, 200, 400)},
            'alpha-0.0': {'priors.weights.sd': 1.0, 'acquisition.caution': 0.15,
                          'gp.mean.affine': 'none', 'acquisition.ucb.alpha': 0.0},
            **{f'caution-{v}': {'priors.weights.sd': 1.0, 'acquisition.caution': v,

@@ -254,12 +254,19 @@ def add_priors_arguments(parser: argparse.ArgumentParser) -> None:
                              'simulated for the damage the feet show, its table in use '
                              f'{SelfModelConfig.delay_steps} steps later; 0: no self-model '
                              '(default %(default)s)')
+    parser.add_argument('--self-model-refine', type=arguments.non_negative_int,
+                        default=SelfModelConfig.refine,
+                        help='gaits the self-model simulates next once its table is in use, '
+                             'those it infers go farthest (self_model.refine; in use in '
+                             'proportion later; default %(default)s)')
 
 
 def self_model_argument(args):
-    """The runs' self-model settings from ``--self-model-gaits`` (0: none)."""
+    """The runs' self-model settings from ``--self-model-gaits`` (0: none) and
+    ``--self-model-refine``."""
     gaits = getattr(args, 'self_model_gaits', SelfModelConfig.gaits)
-    return SelfModelConfig(gaits=gaits, covering=gaits // 2) if gaits else None
+    refine = getattr(args, 'self_model_refine', SelfModelConfig.refine)
+    return SelfModelConfig(gaits=gaits, covering=gaits // 2, refine=refine) if gaits else None
 
 
 def ite_targets(prior_gr) -> np.ndarray:

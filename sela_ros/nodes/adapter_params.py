@@ -102,6 +102,10 @@ PARAMETERS = (
          'costs one simulated gait (about 0.05 s of a core on the hexapod: 600 take 15 s on '
          'two workers)', low=1,
          high=10**6, read_only=True),
+    Spec('self_model.refine', SelfModelConfig.refine, 'once its table is in use, gaits '
+         'simulated next for the damage: those its inferred part says go farthest, the best '
+         'of every direction of travel (an inferred gait is never chosen); 0 = none',
+         low=0, high=10**6, read_only=True),
     Spec('self_model.workers', 2, 'processes that simulate beside the mission, sharing each '
          "damage's gaits (started at the first damage the feet show)", low=1, high=256,
          read_only=True),

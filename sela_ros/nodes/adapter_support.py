@@ -73,9 +73,9 @@ def self_model(values, archive):
 
         robot = get_robot(robot_of(archive.metadata))
         gaits = int(values['self_model.gaits'])
-        model = from_archive(archive, robot.legs, SelfModelConfig(gaits=gaits,
-                                                                  covering=gaits // 2),
-                             robot.vocabulary.kinds)
+        config = SelfModelConfig(gaits=gaits, covering=gaits // 2,
+                                 refine=int(values['self_model.refine']))
+        model = from_archive(archive, robot.legs, config, robot.vocabulary.kinds)
         return model, robot_spec(robot), ''
     except (ImportError, ValueError) as exc:
         return None, None, f'no self-model: {exc}'

@@ -23,6 +23,7 @@ from sela_ros.core.learning import (
     prior_mixture,
 )
 from sela_ros.core.learning.sela_config import SELAConfig
+from sela_ros.core.learning.self_model import PREFIX as SELF_MODEL
 from sela_ros.core.planning import next_waypoint, straight_line_planner
 
 #: Steps seen before a second-tier table of the damage priors may be used: the first step of
@@ -243,6 +244,9 @@ class SELA:
         # Squared planar error of each untried gait's predicted landing, as it was before the
         # gait was learnt (acquisition.caution: how wrong the prior is for this robot).
         self._surprises = []
+        # Those of the steps chosen on a self-model's table: the caution it is used with is
+        # its own record's, not that of the priors that failed before it came.
+        self._model_surprises = []
 
     def set_config(self, config) -> None:
         """Go on with another :class:`SELAConfig` (what is learnt stays)."""
@@ -565,7 +569,7 @@ class SELA:
         selection = self.select_prior()
         mu_t, var, fall_prior = self._posterior(selection)
         x, y = self.motion.predict_xy_columns(pose, mu_t)
-        landing_var = self._landing_variance(var)
+        landing_var = self._landing_variance(var, selection)
         sq_distance = (x - waypoint[0]) ** 2 + (y - waypoint[1]) ** 2
         track = self._track(pose, waypoint, path, waypoint_given)
         if track is not None:
@@ -822,6 +826,8 @@ class SELA:
                 rows = affine_mean.apply_affine(weights, rows, self._candidates[gaits])
             predicted = self._gp.mean_at_with_prior(index, rows[:-1], rows[-1])
         self._surprises.append(float(np.sum((observed[:2] - predicted[:2]) ** 2)))
+        if _self_model_table(selection):
+            self._model_surprises.append(self._surprises[-1])
 
     def _score_affine(self, index, observed, standing) -> None:
         """Add how much better the affine map fitted to the steps before predicted this one
@@ -840,14 +846,18 @@ class SELA:
         self._affine_score += prior_mixture.step_log_likelihood(observed - fitted, standing) \
             - prior_mixture.step_log_likelihood(observed - plain, standing)
 
-    def _landing_variance(self, var):
+    def _landing_variance(self, var, selection=None):
         """Per gait, the variance of its landing if caution is on
         (``acquisition.caution``, and the untried gaits' learnt error at least that), else
-        None."""
+        None. Under a self-model's table (``selection``) the error is learnt from the steps
+        chosen on it alone: it is a model of the damage the feet showed, made after the
+        priors before it had disappointed (docs/learning_the_damage.md, "The self-model's
+        table judged on its own record")."""
         caution = self.config.acquisition_caution
         if caution is None:
             return None
-        error = acquisition.learnt_error(self._surprises)
+        error = acquisition.learnt_error(self._model_surprises if _self_model_table(selection)
+                                         else self._surprises)
         return acquisition.landing_variance(var, error) if error >= caution else None
 
     def tell_fall(self, index: int, fallen: bool) -> None:
@@ -891,12 +901,14 @@ class SELA:
         drop, drop_falls = max(0, len(idx) - count), max(0, len(fall_idx) - count)
         if drop:
             scores, surprises = dict(self._prior_scores), self._surprises[-count:]
+            model_surprises = self._model_surprises[-count:]
             standing, kernel = self._standing[drop:], self.hyper
             self.reset_learning()
             self._gp.set_hyper(*kernel)
             self._gp.fit(idx[drop:], grs[drop:])
             self._standing = standing
             self._prior_scores, self._surprises = scores, surprises
+            self._model_surprises = model_surprises
         if drop_falls:
             self.forget_falls()
             self._fall.tell_many(fall_idx[drop_falls:], fallen[drop_falls:])
@@ -972,6 +984,13 @@ class SELA:
             self._prior_scores = scores
         if surprises is not None:
             self._surprises = surprises if keep is None else surprises[-keep:]
+
+
+def _self_model_table(selection) -> bool:
+    """Is ``selection`` (a :class:`~sela_ros.core.learning.damage_priors.Selection`, or
+    None) one table, the self-model's?"""
+    return selection is not None and selection.index is not None \
+        and selection.mixture is None and str(selection.name).startswith(SELF_MODEL)
 
 
 def _positive(value) -> bool:

@@ -57,23 +57,36 @@ class SelfModelConfig:
         first_tier: the table joins the damage priors' first tier (mixed, chosen whenever it
             best explains the steps); False: the second (chosen only once it has reproduced
             the robot's standing starts).
+        refine: once the table is in, gaits simulated next for it (0: none): those its
+            inferred part predicts go farthest, in every direction (:func:`farthest_by_heading`);
+            a damage's fast gaits are often not among the map's, and an inferred gait is
+            never chosen.
     """
 
     gaits: int = 600
     covering: int = 300
     delay_steps: int = 5
     first_tier: bool = True
+    refine: int = 200
 
     def __post_init__(self):
         if not isinstance(self.first_tier, (bool, np.bool_)):
             raise ValueError(f'self-model first_tier must be true or false, got '
                              f'{self.first_tier!r}')
-        for name in ('gaits', 'covering', 'delay_steps'):
+        for name in ('gaits', 'covering', 'delay_steps', 'refine'):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise ValueError(f'self-model {name} must be a whole number >= 0, got {value!r}')
         if self.gaits < 1:
             raise ValueError(f'self-model gaits must be >= 1, got {self.gaits}')
+
+    def delay(self, gaits) -> int:
+        """Steps from a request of ``gaits`` gaits to its table in use, in the experiments:
+        :attr:`delay_steps` for :attr:`gaits` of them, in proportion for others (at least one
+        step, unless :attr:`delay_steps` is 0)."""
+        if not self.delay_steps:
+            return 0
+        return max(1, round(self.delay_steps * int(gaits) / self.gaits))
 
 
 class LostLegs:
@@ -124,6 +137,28 @@ class LostLegs:
             return 0.0
         duty = np.asarray(simulated_duty, dtype=float)
         return float(np.mean(duty[missed, i] >= NO_CONTACT))
+
+
+#: Directions of travel :func:`farthest_by_heading` shares its gaits between.
+HEADINGS = 8
+
+
+def farthest_by_heading(gr, allowed, count, headings=HEADINGS) -> np.ndarray:
+    """Up to ``count`` gait indices of ``allowed`` ``(M,)`` that go farthest by ``gr``
+    ``(M, >= 2)`` (planar displacement), taken in turn from ``headings`` equal sectors of
+    the direction of travel, the farthest of each first: a robot that walks well one way
+    only still has its best gaits of the others, to turn with."""
+    gr = np.asarray(gr, dtype=float)
+    idx = np.flatnonzero(np.asarray(allowed, dtype=bool))
+    if not idx.size or count <= 0:
+        return np.zeros(0, dtype=int)
+    speed = np.hypot(gr[idx, 0], gr[idx, 1])
+    sector = np.floor((np.arctan2(gr[idx, 1], gr[idx, 0]) + np.pi) / (2 * np.pi)
+                      * headings).astype(int) % headings
+    order = np.lexsort((-speed, sector))  # by sector, the farthest first in each
+    idx, sector = idx[order], sector[order]
+    rank = np.arange(idx.size) - np.searchsorted(sector, sector)  # the place in its sector
+    return idx[np.lexsort((-speed[order], rank))][:int(count)]
 
 
 def alternatives(damage) -> tuple:
@@ -218,6 +253,10 @@ class SelfModel:
         self.given_up = set()  # damages whose simulation failed
         self.answered = set()  # damages requested and answered (perhaps by a smaller one)
         self.simulated_gaits = 0  # gaits simulated so far (the cost)
+        self.outcomes = None  # the installed damage's (gaits, gr, fallen) simulated
+        self.table = None  # its (gr (M, k), fallen (M,)), the others inferred
+        self.refined = set()  # damages whose refinement was asked
+        self.refining = 0  # the gaits of the refinement under way
 
     def observe(self, index, duty_factors, fallen=False) -> None:
         """One step of the robot: its gait and feet."""
@@ -235,10 +274,28 @@ class SelfModel:
             _parts(n) == _parts(damage) for n in priors.names if not n.startswith(PREFIX))
         if damage is None or held or damage in (self.requested, self.installed) \
                 or damage in self.given_up or damage in self.answered:
-            return None
+            return self._refinement()
         self.requested = damage
         return (damage, np.unique(np.concatenate([self.candidates, np.asarray(self.run, int)])),
                 copy.deepcopy(self.feet))
+
+    def _refinement(self):
+        """The installed table's gaits to simulate next (``config.refine`` of them, farthest
+        by its inferred part, in every direction), once per damage, as a :meth:`request`;
+        None if there is nothing to refine or a simulation is under way."""
+        damage = self.installed
+        if not self.config.refine or damage is None or self.requested is not None \
+                or damage in self.refined or damage in self.given_up:
+            return None
+        self.refined.add(damage)
+        simulated = np.zeros(len(self.base_gr), bool)
+        simulated[self.outcomes[0]] = True
+        gaits = farthest_by_heading(self.table[0], ~simulated & ~self.table[1],
+                                    self.config.refine)
+        if not gaits.size:
+            return None
+        self.requested, self.refining = damage, int(gaits.size)
+        return damage, gaits, None
 
     def install(self, priors, damage, gaits, gr, fallen, asked=None) -> DamagePriors | None:
         """``priors`` with the table of ``damage`` simulated on ``gaits`` (``gr`` ``(n, k)``,
@@ -260,13 +317,23 @@ class SelfModel:
         if asked != self.requested:
             return priors
         self.answered.add(asked)
-        self.installed, self.requested = damage, None
         self.simulated_gaits += gaits.size
-        return self._with_table(priors, damage, gaits, gr[:, :k], fallen)
+        gr = gr[:, :k]
+        if damage == self.installed and self.outcomes is not None:  # a refinement: more gaits
+            known, mask = self.outcomes, ~np.isin(gaits, self.outcomes[0])
+            gaits, gr, fallen = (np.concatenate([known[0], gaits[mask]]),
+                                 np.concatenate([known[1], gr[mask]]),
+                                 np.concatenate([known[2], fallen[mask]]))
+        self.installed, self.requested = damage, None
+        self.outcomes = (gaits, gr, fallen)
+        self.table = infer(self.descriptors, self.base_gr, gaits, gr, fallen, self.sigma)
+        return self._with_table(priors, damage, gaits, *self.table)
 
     def status(self) -> str:
         """Where it stands, in words: the damage being simulated, the one whose table is in
         the priors, or that the feet show no leg lost."""
+        if self.requested is not None and self.requested == self.installed:
+            return f'{self.installed} simulated, {self.refining} more gaits of it simulating'
         if self.requested is not None:
             return f'simulating {self.requested}'
         if self.installed is not None:
@@ -288,8 +355,8 @@ class SelfModel:
         self-model's table."""
         self.feet = LostLegs(self.feet.intact_duty, self.feet.legs)
         self.run = []
-        self.requested = self.installed = None
-        self.given_up, self.answered = set(), set()
+        self.requested = self.installed = self.outcomes = self.table = None
+        self.given_up, self.answered, self.refined = set(), set(), set()
         return self.forget_table(priors)
 
     @staticmethod
@@ -301,12 +368,11 @@ class SelfModel:
             priors = priors.without(name)
         return priors if len(priors) else None
 
-    def _with_table(self, priors, damage, gaits, gr, fallen) -> DamagePriors:
-        """``priors`` with the table of ``damage`` in place of the self-model's earlier one:
-        the last of the first tier (``config.first_tier``) or of the second."""
+    def _with_table(self, priors, damage, gaits, table, table_fallen) -> DamagePriors:
+        """``priors`` with the table of ``damage`` (``table`` ``(M, k)``, ``table_fallen``
+        ``(M,)``, simulated on ``gaits``) in place of the self-model's earlier one: the last
+        of the first tier (``config.first_tier``) or of the second."""
         k = self.base_gr.shape[1]
-        table, table_fallen = infer(self.descriptors, self.base_gr, gaits, gr, fallen,
-                                    self.sigma)
         simulated = np.zeros(len(self.base_gr), bool)
         simulated[gaits] = True
         second = not self.config.first_tier

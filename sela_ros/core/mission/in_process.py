@@ -113,8 +113,8 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
         simulate: ``(damage, gaits) -> (generic rewards (n, k), fallen (n,), duty factors
             (n, legs))``, the robot's simulator, for the self-model's hypotheses
             (:func:`answer_request`): run here at once, its answer given to the stepper
-            ``self_model.config.delay_steps`` gaits later (the time it takes a robot beside
-            its mission).
+            ``self_model.config.delay(gaits asked)`` gaits later (the time it takes a robot
+            beside its mission).
     """
     config = stepper_config or StepperConfig()
     stepper = MissionStepper(sela, config, self_model=self_model)
@@ -148,7 +148,8 @@ def run_mission(env, sela, goals, planner, detector_config=None, stepper_config=
         elif isinstance(command, SimulateDamage):
             answer = DamageSimulated(command.damage, command.gaits, error='no simulator') \
                 if simulate is None else answer_request(command, simulate)
-            simulated.append((stepper.logic.steps + self_model.config.delay_steps, answer))
+            simulated.append((stepper.logic.steps + self_model.config.delay(len(command.gaits)),
+                              answer))
         elif isinstance(command, SendGait):
             for due, answer in [s for s in simulated if s[0] <= stepper.logic.steps]:
                 simulated.remove((due, answer))

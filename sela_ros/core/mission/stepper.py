@@ -308,8 +308,10 @@ class MissionStepper:
         if wanted is None:
             return []
         damage, gaits, feet = wanted
-        return [Report(Level.OK, f'self-model: the feet say {damage}; simulating it on '
-                       f'{len(gaits)} gaits beside the mission'),
+        said = f'the feet say {damage}; simulating it on {len(gaits)} gaits' \
+            if feet is not None else \
+            f'simulating {len(gaits)} more gaits of {damage}, those its table infers go farthest'
+        return [Report(Level.OK, f'self-model: {said} beside the mission'),
                 io.SimulateDamage(damage, tuple(int(g) for g in gaits), feet)]
 
     def _on_damage_simulated(self, event, now):

@@ -348,6 +348,20 @@ def test_caution_prefers_a_gait_tried_once_the_map_proves_wrong():
     assert _surprised(None).ask(np.zeros(2)).index in (2, 3)
     assert _surprised(0.3).ask(np.zeros(2)).index in (2, 3)
 
+@pytest.mark.parametrize('name, chosen', [('remove:a', (0,)),
+                                          ('self-model remove:a', (2, 3))])
+def test_a_self_models_table_is_used_with_the_caution_of_its_own_record(name, chosen):
+    from sela_ros.core.learning import DamagePriors
+
+    # The map proved wrong on three steps; then a table arrives that reproduces them and
+    # says the two untried gaits step 0.55 m. A table of the library is used with the
+    # caution the map's errors taught; the self-model's, made for the damage the feet
+    # showed, with that of the steps chosen on it (none yet).
+    sela = _surprised(0.15)
+    table = np.array([[0.35, 0.0], [0.1, 0.0], [0.55, 0.0], [0.55, 0.0], [0.1, 0.0]])
+    sela.priors = DamagePriors((name,), table[None], np.zeros((1, 5), bool), 'sum')
+    decision = sela.ask(np.zeros(2))
+    assert decision.prior == name and decision.index in chosen
 
 
 def test_on_the_step_to_the_goal_caution_never_stays_put():

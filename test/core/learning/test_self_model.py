@@ -10,6 +10,7 @@ from sela_ros.core.learning.self_model import (
     SelfModelConfig,
     alternatives,
     choose,
+    farthest_by_heading,
     hypothesis,
     legs_of,
 )
@@ -65,6 +66,39 @@ def test_a_gait_that_does_not_lean_on_a_leg_says_nothing_of_it():
     assert feet.leaned.sum() == sum(int((duty[g] >= 0.3).sum()) for g in light)
 
 
+def test_the_farthest_gaits_are_taken_in_turn_from_every_direction():
+    angle = np.linspace(-np.pi, np.pi, 64, endpoint=False) + 0.01
+    speed = np.where(np.cos(angle) > 0, 1.0, 0.1) * (1 + 0.001 * np.arange(64))
+    gr = np.column_stack([speed * np.cos(angle), speed * np.sin(angle), np.zeros(64)])
+    allowed = np.ones(64, bool)
+    allowed[np.argmax(speed)] = False
+    picked = farthest_by_heading(gr, allowed, 8, headings=8)
+    # One gait of each of the eight sectors, the farthest of each, the slow ones included.
+    sector = np.floor((np.arctan2(gr[:, 1], gr[:, 0]) + np.pi) / (np.pi / 4)).astype(int) % 8
+    assert sorted(sector[picked]) == list(range(8)) and np.argmax(speed) not in picked
+    for g in picked:
+        same = np.flatnonzero((sector == sector[g]) & allowed)
+        assert speed[g] == speed[same].max()
+    assert len(farthest_by_heading(gr, allowed, 100)) == 63
+    assert farthest_by_heading(gr, np.zeros(64, bool), 5).size == 0
+
+
+def test_no_refinement_when_refine_is_zero():
+    model, gr, duty = _model(SelfModelConfig(gaits=50, covering=25, refine=0))
+    steps = np.flatnonzero(duty[:, 0] > 0.5)[:2]
+    for g in steps:
+        model.observe(g, _feet(duty[g], ('a',)))
+    damage, gaits, _ = model.request(None)
+    out = model.install(None, damage, gaits, *_robot(gr, damage, gaits))
+    assert out.names == (PREFIX + 'remove:a',) and model.request(out) is None
+
+
+def test_the_delay_of_a_request_is_in_proportion_to_its_gaits():
+    config = SelfModelConfig(gaits=600, delay_steps=5)
+    assert (config.delay(602), config.delay(200), config.delay(10)) == (5, 2, 1)
+    assert SelfModelConfig(delay_steps=0).delay(600) == 0
+
+
 def test_hypothesis_names_the_legs_removed():
     assert hypothesis(()) is None
     assert hypothesis(('a', 'c')) == 'remove:a,remove:c'
@@ -74,6 +108,8 @@ def test_hypothesis_names_the_legs_removed():
 def test_a_bad_config_is_refused(value):
     with pytest.raises(ValueError):
         SelfModelConfig(delay_steps=value)
+    with pytest.raises(ValueError):
+        SelfModelConfig(refine=value)
     with pytest.raises(ValueError):
         SelfModelConfig(gaits=0)
 
@@ -126,7 +162,20 @@ def test_a_table_is_asked_for_once_for_legs_no_table_holds_and_appended():
     assert out.second_tier.tolist() == [False, False]  # the first tier's last table
     assert out.simulated[1].sum() == len(gaits) and out.simulated[0].all()
     np.testing.assert_allclose(out.generic_reward[1][gaits], gr[gaits] * 0.3)
-    assert model.request(out) is None and model.simulated_gaits == len(gaits)
+    assert model.simulated_gaits == len(gaits)
+    # Then, once, the gaits its inferred part says go farthest, not simulated yet.
+    again, more, feet = model.request(out)
+    assert again == 'remove:a' and feet is None and len(more) == min(
+        model.config.refine, len(gr) - len(gaits) - int(model.table[1].sum()))
+    assert not set(more) & set(gaits)
+    assert model.status() == f'remove:a simulated, {len(more)} more gaits of it simulating'
+    assert model.request(out) is None  # under way
+    out = model.install(out, again, more, *_robot(gr, again, more))
+    assert out.names == ('remove:b', PREFIX + 'remove:a')  # the same table, grown
+    assert out.simulated[1].sum() == len(gaits) + len(more)
+    np.testing.assert_allclose(out.generic_reward[1][gaits], gr[gaits] * 0.3)
+    np.testing.assert_allclose(out.generic_reward[1][more], gr[more] * 0.3)
+    assert model.request(out) is None and model.simulated_gaits == len(gaits) + len(more)
     # Forgetting the learning drops the evidence and the table.
     assert model.forget(out).names == ('remove:b',) and model.feet.lost() == ()
 
@@ -213,8 +262,10 @@ def test_the_status_says_where_it_stands():
     assert model.status() == 'remove:a held by a table'
     damage, gaits, _ = model.request(None)
     assert model.status() == 'simulating remove:a'
-    model.install(None, damage, gaits, *_robot(gr, damage, gaits))
+    out = model.install(None, damage, gaits, *_robot(gr, damage, gaits))
     assert model.status() == 'remove:a simulated'
+    _, more, _ = model.request(out)
+    assert model.status() == f'remove:a simulated, {len(more)} more gaits of it simulating'
     model.forget(None)
     for g in np.flatnonzero(duty[:, 1] > 0.5)[:2]:
         model.observe(g, _feet(duty[g], ('b',)))
@@ -250,7 +301,8 @@ def test_a_leg_the_others_tilt_off_the_ground_is_not_lost():
     assert choose(feet, damage, _simulator_of_feet(duty, tilts=True)) == 'remove:b'
     out = model.install(None, 'remove:b', gaits, *_robot(gr, 'remove:b', gaits), asked=damage)
     assert out.names == (PREFIX + 'remove:b',) and model.status() == 'remove:b simulated'
-    assert model.request(out) is None  # the feet's damage is answered: not asked again
+    # The feet's damage is answered: not asked again; the table answered is refined.
+    assert model.request(out)[0] == 'remove:b'
 
     # A robot whose body does not tilt: each leg missing is lost.
     upright = _simulator_of_feet(duty, tilts=False)

@@ -84,13 +84,21 @@ def _simulator(damaged, damage, indices):
 def test_the_feet_are_simulated_and_the_table_used_from_the_delay_on(delay):
     run, sela, model, calls, said = _mission(delay, _simulator)
     assert run.success
-    (damage, gaits), = calls
+    (damage, gaits), *more = calls
     assert damage == 'remove:a' and len(gaits) >= 120
     # Asked once the feet showed it (two steps leaning on leg 'a' at least), answered
     # ``delay`` gaits later: the step after that is the first chosen with the table in.
     asked = said.index('simulating remove:a')
     assert asked >= 1 and said[:asked] == ['no leg lost'] * asked
-    assert said.index('remove:a simulated') == asked + delay + 1
+    in_use = [i for i, s in enumerate(said) if s.startswith('remove:a simulated')]
+    assert in_use and in_use[0] == asked + delay + 1
+    # Then the gaits the table infers go farthest, once, while the table is in use.
+    (again, extra), = more
+    assert again == 'remove:a' and not set(extra) & set(gaits)
+    assert said[in_use[0]] == f'remove:a simulated, {len(extra)} more gaits of it simulating'
+    # Counted once answered (at once with no delay; the mission may end before).
+    assert model.simulated_gaits == len(gaits) + len(extra) if delay == 0 \
+        else model.simulated_gaits in (len(gaits), len(gaits) + len(extra))
     assert PREFIX + 'remove:a' in sela.priors.names
     assert sela.select_prior().name == PREFIX + 'remove:a'  # it explains the steps
 
