@@ -141,10 +141,11 @@ def bench_shipped(observations=20, repeats=15, seed=0, mixed=False, priors=None,
 
 
 def self_model_priors(pair='remove:front_left,remove:middle_left', seed=0):
-    """``(priors, seconds)``: the shipped priors less ``pair`` (and its near duplicates, as
-    the leave-one-out does) plus the self-model's table of it, made as the adapter makes it
-    (:meth:`SelfModel.install`, its outcomes read off the pair's shipped table, which
-    simulated them), and the wall time the install took."""
+    """``(priors, seconds, refine seconds)``: the shipped priors less ``pair`` (and its near
+    duplicates, as the leave-one-out does) plus the self-model's table of it, made as the
+    adapter makes it (:meth:`SelfModel.install`, its outcomes read off the pair's shipped
+    table, which simulated them), then refined (the gaits it asks for next, those the pair's
+    table simulated), and the wall time each install took."""
     from sela_ros.core.learning import resolve_priors
     from sela_ros.core.learning.self_model import from_archive
     from sela_ros.core.storage import default_archive_path, load_archive
@@ -173,7 +174,15 @@ def self_model_priors(pair='remove:front_left,remove:middle_left', seed=0):
     t0 = time.perf_counter()
     out = model.install(priors, damage, gaits, shipped.generic_reward[truth, gaits],
                         shipped.fallen[truth, gaits])
-    return out, time.perf_counter() - t0
+    first = time.perf_counter() - t0
+    refine = model.request(out)
+    if refine is None:
+        return out, first, None
+    more = refine[1][known[refine[1]]]
+    t0 = time.perf_counter()
+    out = model.install(out, damage, more, shipped.generic_reward[truth, more],
+                        shipped.fallen[truth, more])
+    return out, first, time.perf_counter() - t0
 
 
 def shipped_names():
@@ -335,13 +344,14 @@ def main():
               f'median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} ms (target < 20 ms)'
               f'{_on(cautious)}')
     if pair in shipped_names():
-        priors, install = self_model_priors(pair)
+        priors, install, refined = self_model_priors(pair)
         t, t_min, gaits, prior, horizon, cautious, _ = bench_shipped(
             damage=pair, priors=priors, caution=args.caution, mean_affine=args.mean_affine)
         print(f'  the same, its table left out and the self-model\'s table of it in the first '
               f'tier (prior in use: {prior}): median {1e3 * t:.2f} ms, min {1e3 * t_min:.2f} '
               f'ms (target < 20 ms){_on(cautious)}; the table installed in '
-              f'{1e3 * install:.0f} ms, once')
+              f'{1e3 * install:.0f} ms, once, and refined in '
+              f'{"-" if refined is None else f"{1e3 * refined:.0f}"} ms, once')
     for label, priors in ((f'{args.tables} tables like a library\'s', args.tables),
                           (args.library, args.library)):
         if not priors:

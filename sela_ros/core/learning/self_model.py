@@ -10,9 +10,10 @@ the self-model simulates it on gaits of the map (those the robot ran, which the 
 then reproduce, and :func:`~sela_ros.core.learning.table_inference.gait_subset`'s cover of the
 map and its fastest gaits), infers the others
 (:func:`~sela_ros.core.learning.table_inference.infer`) and hands SELA the table as a
-second-tier damage prior: used as any table of the damage library is, only once it best
-explains the steps and has reproduced the robot's standing starts, its inferred gaits never
-chosen. A hypothesis that is one of the tables already there adds nothing.
+damage prior, its inferred gaits never chosen (in the first tier by default:
+:attr:`SelfModelConfig.first_tier`). Once it is in use, the gaits its inferred part says go
+farthest are simulated too (:attr:`SelfModelConfig.refine`), and the table grows by them. A
+hypothesis that is one of the tables already there adds nothing.
 
 The simulation costs a simulated gait per gait (``SelfModelConfig.gaits`` of them, 0.05
 core-seconds each on the hexapod: 30 core-seconds for 600); a robot runs it beside the
