@@ -852,7 +852,7 @@ class SELA:
         None. Under a self-model's table (``selection``) the error is learnt from the steps
         chosen on it alone: it is a model of the damage the feet showed, made after the
         priors before it had disappointed (docs/learning_the_damage.md, "The self-model's
-        table judged on its own record")."""
+        table refined and judged on its own record")."""
         caution = self.config.acquisition_caution
         if caution is None:
             return None
