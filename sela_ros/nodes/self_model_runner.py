@@ -9,6 +9,8 @@ robot ran), then that damage's gaits, shared among the workers. It hands
 the answer back as a :class:`~sela_ros.core.mission.stepper_io.DamageSimulated` that the
 node's timer feeds to the stepper. No callback waits on it.
 """
+from concurrent.futures import Future
+
 import numpy as np
 
 from sela_ros.core.mission import stepper_io as io
@@ -63,13 +65,19 @@ class SelfModelSimulations:
 
     def submit(self, command: io.SimulateDamage) -> None:
         """Start answering ``command``: the damage it settles on in one worker (the gaits the
-        robot ran, a few), then its gaits shared among the workers."""
+        robot ran, a few; none to settle without the feet), then its gaits shared among the
+        workers."""
         from sim_bridge.evaluation import worker_pool
 
         if self._pool is None:
             self._pool = worker_pool(self.workers)
-        self._running.append(_Request(command, self._pool.submit(
-            _settle, command, self.params, self.settings, self.robot)))
+        if command.feet is None:  # more gaits of a damage already settled on (a refinement)
+            settled = Future()
+            settled.set_result(command.damage)
+        else:
+            settled = self._pool.submit(_settle, command, self.params, self.settings,
+                                        self.robot)
+        self._running.append(_Request(command, settled))
 
     @property
     def busy(self) -> int:
